@@ -36,14 +36,15 @@ class McfitGroup(click.Group):
     """A click group that reports :class:`McfitError` and can have a default command.
 
     ``default_command`` names a subcommand that receives the arguments when the first one
-    is not a subcommand name or an option of the group, so that ``mcfit FILE...`` can mean
-    ``mcfit fit FILE...`` once a ``fit`` command exists. It is ``None`` (off) for now.
+    is neither a subcommand name nor one of the group's own options (--help, --version), so that ``mcfit FILE...`` means
+    ``mcfit fit FILE...``.
     """
 
-    default_command: str | None = None
+    default_command: str | None = "fit"
 
     def parse_args(self, ctx, args):
-        if (self.default_command is not None and args and not args[0].startswith("-")
+        group_options = {"-h", "--help", "--version"}
+        if (self.default_command is not None and args and args[0] not in group_options
                 and args[0] not in self.commands):
             args = [self.default_command, *args]
         return super().parse_args(ctx, args)
@@ -182,6 +183,199 @@ def simulate(a, b, c, y0, period, duration, rate, noise, offset, drift, seed, me
         write(sys.stdout)
     else:
         _write_atomically(output, write)
+
+
+_FIT_HELP = """Fit the damping law to each record FILE and report a, b, c and Q(t).
+
+FILE is a CSV/TSV/TXT/DAT or Excel record, - for stdin, or a directory (its record
+files). For each record mcfit finds the turning points, fits dy/dt = -c - b*y - a*y^2
+to their amplitudes, keeps the damping regimes the record supports (fluid a,
+hysteretic b, Coulomb c) and reports Q initial/final/min/max. The word "fit" may be
+left out: mcfit FILE... does the same.
+
+\b
+Output (stdout): a readable report (default), --format json (one object for one
+file, JSON Lines for several, in input order) or --format csv (one row per file).
+Diagnostics and progress go to stderr.
+
+\b
+Exit codes:
+  0  every record was fitted
+  1  at least one record failed (its row says why; the others are still reported)
+  2  usage error (bad options)
+
+\b
+Examples:
+  mcfit sample_data/fig20_19.csv
+  mcfit run1.csv --plot run1.png
+  mcfit data/ --format csv -o results.csv --plot-dir plots --jobs 2
+  mcfit lab.txt --signal-col 2 --model ab
+  mcfit peaks.csv --input turning-points --domain cycle
+"""
+
+
+def _column(value):
+    """A column option: 1-based index when it is a whole number, else a name."""
+    if value is None:
+        return None
+    return int(value) if value.strip().isdigit() else value
+
+
+@cli.command("fit", help=_FIT_HELP, short_help="Fit records and report damping and Q (default).")
+@click.argument("files", nargs=-1, required=True)
+@click.option("--time-col", metavar="NAME|N", help="Time column, by name or 1-based index.")
+@click.option("--signal-col", metavar="NAME|N", help="Signal column, by name or 1-based index.")
+@click.option("--sheet", metavar="NAME|N", help="Excel sheet, by name or 1-based index.")
+@click.option("--rate", type=_POSITIVE, metavar="HZ",
+              help="Sample rate: time from the sample index (no or unusable time column).")
+@click.option("--input", "input_kind", type=click.Choice(["waveform", "turning-points"]),
+              help="Kind of record [default: detected].")
+@click.option("--domain", type=click.Choice(["time", "cycle"]),
+              help="Whether the first column is time or cycle number n [default: detected].")
+@click.option("--criterion", type=click.Choice(["aicc", "bic"]), default="aicc",
+              show_default=True, help="Information criterion that chooses the regimes.")
+@click.option("--model", metavar="LETTERS|power",
+              help="Force the regimes, e.g. ab, or power for dy/dt = -k*y^n.")
+@click.option("--bootstrap", type=click.IntRange(min=0), default=0, metavar="N",
+              help="Residual-bootstrap refits for 95 % intervals.")
+@click.option("--seed", type=click.IntRange(min=0), default=None,
+              help="Seed of the bootstrap resampling.")
+@click.option("--format", "output_format", type=click.Choice(["text", "json", "csv"]),
+              default="text", show_default=True, help="Output format.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False, allow_dash=True), default="-",
+              help="Write results to this file (whole, via a temporary file); - for stdout.")
+@click.option("--plot", "plot_file", type=click.Path(dir_okay=False),
+              help="Report figure for a single record (.png, .pdf or .svg).")
+@click.option("--plot-dir", type=click.Path(file_okay=False),
+              help="Directory for one PNG report figure per record (batch).")
+@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Worker processes; results stay in input order.")
+def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
+        bootstrap, seed, output_format, output, plot_file, plot_dir, jobs):
+    from mcfit import batch
+
+    sources = batch.expand_inputs(files)
+    if model is not None and model != "power" and (
+            not model or set(model.lower()) - set("abc")):
+        raise UsageError(f"--model {model!r} is not a set of regimes; use letters from abc "
+                         "(e.g. ab) or power.")
+    if plot_file is not None and len(sources) != 1:
+        raise UsageError("--plot takes one record; for several use --plot-dir DIR.")
+    if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf",
+                                                                                ".svg"):
+        raise UsageError(f"--plot {plot_file}: the name must end in .png, .pdf or .svg.")
+    if output != "-":
+        _refuse_to_overwrite_an_input(output, sources)
+    if "-" in sources:
+        jobs = 1  # stdin can be read by one process only
+    if plot_dir is not None:
+        try:
+            os.makedirs(plot_dir, exist_ok=True)
+        except OSError as error:
+            raise McfitError(f"cannot create plot directory {plot_dir}: "
+                             f"{error.strerror or error}") from error
+        taken = set()
+        plot_paths = [batch.plot_path_for(s, plot_dir, taken) for s in sources]
+    else:
+        plot_paths = [plot_file] * len(sources)
+    options = batch.FitOptions(
+        time_col=_column(time_col), signal_col=_column(signal_col), sheet=_column(sheet),
+        rate=rate, input=input_kind, domain=domain, criterion=criterion,
+        model=model.lower() if model else None, bootstrap=bootstrap, seed=seed,
+        output_format=output_format)
+    results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
+    failures = _write_results(results, sources, output_format, output)
+    sys.exit(1 if failures else 0)
+
+
+def _refuse_to_overwrite_an_input(output, sources):
+    for source in sources:
+        if source != "-" and os.path.exists(output) and os.path.exists(source) \
+                and os.path.samefile(output, source):
+            raise UsageError(f"-o {output} is one of the input records; choose another "
+                             "output file, inputs are never overwritten.")
+
+
+def _write_results(results, sources, output_format, output):
+    """Write each result as it arrives; return the number of failed records.
+
+    With -o the lines go to a temporary file that replaces the target at the end, or at an
+    interruption, so the file always holds whole records only.
+    """
+    total = len(sources)
+    if output == "-":
+        stream, temporary = sys.stdout, None
+    else:
+        directory = os.path.dirname(os.path.abspath(output))
+        try:
+            handle, temporary = tempfile.mkstemp(dir=directory,
+                                                 prefix=f".{os.path.basename(output)}.",
+                                                 suffix=".tmp")
+        except OSError as error:
+            raise McfitError(f"cannot write {output}: {error.strerror or error}; check that "
+                             "the directory exists and is writable.") from error
+        stream = os.fdopen(handle, "w", newline="")
+    failures = done = 0
+    show_progress = total > 1 and sys.stderr.isatty()
+    progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
+                if show_progress else None)
+    try:
+        if output_format == "csv":
+            from mcfit.report import csv_header
+
+            stream.write(csv_header())
+        for result in results:
+            done += 1
+            if result.status != "ok":
+                failures += 1
+                click.echo(f"Error: {result.error}", err=True)
+            if result.plot_error:
+                failures += 1
+                click.echo(f"Error: {result.plot_error}", err=True)
+            if output_format == "json":
+                stream.write(result.json_line + "\n" if total > 1
+                             else _pretty_json(result.json_line))
+            elif output_format == "csv":
+                stream.write(result.csv_row)
+            else:
+                stream.write(result.text + ("\n" if done < total else ""))
+            stream.flush()
+            if progress is not None:
+                progress.update(1)
+    except KeyboardInterrupt:
+        click.echo(f"\nInterrupted: {done} of {total} records finished"
+                   + (f" and kept in {output}." if temporary else "."), err=True)
+        _finish_output(stream, temporary, output)
+        sys.exit(130)
+    except BaseException:
+        if temporary is not None:
+            stream.close()
+            os.unlink(temporary)
+        raise
+    finally:
+        if progress is not None:
+            progress.render_finish()
+    _finish_output(stream, temporary, output)
+    return failures
+
+
+def _pretty_json(line):
+    import json
+
+    return json.dumps(json.loads(line), indent=2) + "\n"
+
+
+def _finish_output(stream, temporary, output):
+    if temporary is None:
+        stream.flush()
+        return
+    stream.flush()
+    os.fsync(stream.fileno())
+    stream.close()
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(temporary, 0o666 & ~umask)
+    os.replace(temporary, output)
 
 
 def _write_atomically(path, write):

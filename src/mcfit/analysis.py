@@ -1,0 +1,65 @@
+"""From a read record to turning points and a fit: the whole job for one record, no I/O."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mcfit.errors import McfitError
+from mcfit.fit import DecayFit, fit_decay
+from mcfit.turning import TurningPoints, turning_points_of
+
+__all__ = ["Analysis", "analyse_record", "failed_analysis"]
+
+
+@dataclass(frozen=True)
+class Analysis:
+    """Everything known about one record; ``status`` is "ok" or "error" (with ``error``)."""
+
+    source: str
+    status: str
+    error: str | None
+    record: object | None = None  # mcfit.records.Record
+    turning: TurningPoints | None = None
+    fit: DecayFit | None = None
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        found = []
+        if self.fit is not None:
+            found += list(self.fit.warnings)
+        return tuple(found)
+
+
+def failed_analysis(source: str, message: str, record=None, turning=None) -> Analysis:
+    """An analysis that ended in an expected failure, carrying the one-line message."""
+    return Analysis(source=source, status="error", error=message, record=record, turning=turning)
+
+
+def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=None) -> Analysis:
+    """Turning points of ``record`` and the fit of the amplitude law to the used ones.
+
+    Expected failures (no usable decay, too few turning points) come back as an
+    :class:`Analysis` with ``status == "error"``; they are not raised.
+    """
+    source = record.source
+    try:
+        turning = turning_points_of(record)
+    except McfitError as error:
+        return failed_analysis(source, str(error), record=record)
+    used = turning.used
+    sigma = turning.sigma[used]
+    if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
+        sigma = None
+    period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
+    try:
+        fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
+                        domain=turning.domain, criterion=criterion, model=model,
+                        bootstrap=bootstrap, rng=rng)
+    except McfitError as error:
+        return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)
+    status = fit.status
+    return Analysis(source=source, status=status, error=fit.message, record=record,
+                    turning=turning, fit=fit)

@@ -1,0 +1,147 @@
+"""Running the fit over many files: one job per file, results in input order as they finish.
+
+Each job reads, analyses, formats and (optionally) plots one record and returns plain
+strings, so worker processes send back little and the command line only writes.
+"""
+
+from __future__ import annotations
+
+import os
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from mcfit.errors import McfitError, UsageError
+
+__all__ = ["FitOptions", "JobResult", "expand_inputs", "run_jobs", "plot_path_for"]
+
+RECORD_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat", ".xlsx", ".xlsm")
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Everything a job needs besides the file name (picklable for worker processes)."""
+
+    time_col: str | int | None = None
+    signal_col: str | int | None = None
+    sheet: str | int | None = None
+    rate: float | None = None
+    input: str | None = None
+    domain: str | None = None
+    criterion: str = "aicc"
+    model: str | None = None
+    bootstrap: int = 0
+    seed: int | None = None
+    output_format: str = "text"
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """What one file produced: its status, the formatted output and any plot problem."""
+
+    source: str
+    status: str
+    error: str | None
+    text: str
+    json_line: str
+    csv_row: str
+    plot_error: str | None = None
+
+
+def expand_inputs(arguments) -> list[str]:
+    """Files as given, with each directory replaced by its record files (sorted)."""
+    files = []
+    for argument in arguments:
+        if argument != "-" and os.path.isdir(argument):
+            found = sorted(str(p) for p in Path(argument).iterdir()
+                           if p.is_file() and p.suffix.lower() in RECORD_EXTENSIONS)
+            if not found:
+                raise UsageError(f"directory {argument} holds no record files "
+                                 f"({', '.join(RECORD_EXTENSIONS)}); name the files instead.")
+            files.extend(found)
+        else:
+            files.append(argument)
+    return files
+
+
+def plot_path_for(source: str, plot_dir: str, taken: set) -> str:
+    """A PNG name in ``plot_dir`` from the record's file name, unique within the batch."""
+    stem = "stdin" if source == "-" else Path(source).stem
+    candidate = Path(plot_dir) / f"{stem}.png"
+    number = 2
+    while str(candidate) in taken:
+        candidate = Path(plot_dir) / f"{stem}-{number}.png"
+        number += 1
+    taken.add(str(candidate))
+    return str(candidate)
+
+
+def _job(argument):
+    """Read, analyse, format and plot one record; never raises for a bad file."""
+    source, options, plot_path = argument
+    from mcfit import report
+    from mcfit.analysis import analyse_record, failed_analysis
+    from mcfit.records import read_record
+
+    import numpy as np
+
+    record = None
+    try:
+        record = read_record(source, time_col=options.time_col, signal_col=options.signal_col,
+                             sheet=options.sheet, rate=options.rate, input=options.input,
+                             domain=options.domain)
+        analysis = analyse_record(record, criterion=options.criterion, model=options.model,
+                                  bootstrap=options.bootstrap,
+                                  rng=np.random.default_rng(options.seed))
+    except McfitError as error:
+        analysis = failed_analysis(_display_name(source), " ".join(str(error).split()),
+                                   record=record)
+    plot_error = None
+    if plot_path is not None and analysis.status == "ok":
+        try:
+            _plot(analysis, plot_path)
+        except (OSError, ValueError) as error:
+            plot_error = f"cannot write plot {plot_path}: {error}"
+    return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
+                     text=report.to_text(analysis), json_line=report.to_json(analysis),
+                     csv_row=report.to_csv_row(analysis), plot_error=plot_error)
+
+
+def _display_name(source) -> str:
+    return "<stdin>" if source == "-" else str(source)
+
+
+def _plot(analysis, path):
+    import numpy as np
+
+    from mcfit.plots import RecordView, report_figure, save_figure
+
+    record, turning, fit = analysis.record, analysis.turning, analysis.fit
+    if record.kind == "waveform":
+        t, x = record.t, record.x
+        equilibrium = turning.equilibrium + turning.equilibrium_drift * (t - t[0])
+        turning_x = (turning.equilibrium + turning.equilibrium_drift * (turning.t - t[0])
+                     + turning.sign * turning.y)
+    else:
+        t = x = equilibrium = None
+        turning_x = turning.y
+    time_label = ("cycle number n" if record.domain == "cycle"
+                  else f"time ({record.time_unit or 's'})")
+    signal_label = record.signal_unit or record.signal_column or "signal"
+    view = RecordView(title=Path(analysis.source).name, t=t, x=x, equilibrium=equilibrium,
+                      turning_t=np.asarray(turning.t), turning_x=np.asarray(turning_x),
+                      used=np.asarray(turning.used), time_label=time_label,
+                      signal_label=signal_label)
+    save_figure(report_figure(view, fit), path)
+
+
+def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
+    """Yield a :class:`JobResult` per source, in input order, each as soon as it is ready."""
+    arguments = [(source, options, plot) for source, plot in zip(sources, plot_paths)]
+    if jobs <= 1 or len(arguments) <= 1:
+        for argument in arguments:
+            yield _job(argument)
+        return
+    with ProcessPoolExecutor(max_workers=jobs) as executor:
+        # map keeps input order and hands results over lazily, one by one.
+        yield from executor.map(_job, arguments, chunksize=1)

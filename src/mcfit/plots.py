@@ -1,0 +1,205 @@
+"""Report figure: the record, the amplitudes and fits, Q(t), and damping rate against amplitude.
+
+matplotlib is used through ``matplotlib.figure.Figure`` only (no pyplot, no display needed).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from mcfit import decay
+from mcfit.fit import REGIME_NAMES, DecayFit
+
+__all__ = ["RecordView", "report_figure", "save_figure"]
+
+_SINGLE_STYLE = {"a": ("tab:orange", "fluid only (a)"), "b": ("tab:green", "hysteretic only (b)"),
+                 "c": ("tab:purple", "Coulomb only (c)")}
+
+
+@dataclass(frozen=True)
+class RecordView:
+    """What the figure shows of the record besides the fit.
+
+    ``t``/``x`` are the waveform samples (None for a turning-point table);
+    ``equilibrium`` the estimated equilibrium at each sample (same shape as ``t``) or None;
+    ``turning_t``/``turning_x`` the signed extremum positions; ``used`` marks the turning
+    points that entered the fit (their amplitudes are ``fit.y``).
+    """
+
+    title: str
+    t: np.ndarray | None
+    x: np.ndarray | None
+    equilibrium: np.ndarray | None
+    turning_t: np.ndarray
+    turning_x: np.ndarray
+    used: np.ndarray
+    time_label: str = "time (s)"
+    signal_label: str = "signal"
+
+
+def report_figure(view: RecordView, fit: DecayFit) -> Figure:
+    """Four panels: record, amplitudes (+ residuals), Q(t) with parts, rate against amplitude."""
+    figure = Figure(figsize=(12, 9.5), layout="constrained")
+    grid = figure.add_gridspec(3, 2, height_ratios=[3, 1, 3])
+    axes_record = figure.add_subplot(grid[0, 0])
+    axes_amplitude = figure.add_subplot(grid[0, 1])
+    axes_residual = figure.add_subplot(grid[1, 1], sharex=axes_amplitude)
+    axes_q = figure.add_subplot(grid[2, 0])
+    axes_rate = figure.add_subplot(grid[2, 1])
+    _draw_record(axes_record, view, fit)
+    _draw_amplitudes(axes_amplitude, axes_residual, view, fit)
+    _draw_q(axes_q, view, fit)
+    _draw_rate(axes_rate, view, fit)
+    kept = (", ".join(REGIME_NAMES[k] for k in fit.model).replace("coulomb", "Coulomb")
+            if fit.model != "power" else "power law")
+    figure.suptitle(f"{view.title}: {kept} damping", fontsize=13)
+    # Free the blank cell under the record panel for a parameter summary.
+    summary = figure.add_subplot(grid[1, 0])
+    summary.axis("off")
+    summary.text(0.0, 1.0, _summary_text(fit), va="top", ha="left", family="monospace",
+                 fontsize=9, transform=summary.transAxes)
+    return figure
+
+
+def _summary_text(fit: DecayFit) -> str:
+    unit = "s" if fit.domain == "time" else "cycle"
+    lines = []
+    for key, label in (("a", f"a (1/(U*{unit}))"), ("b", f"b (1/{unit})"), ("c", f"c (U/{unit})")):
+        value, error = fit.values[key], fit.stderr[key]
+        if fit.model != "power" and key in fit.model:
+            lines.append(f"{label:16s} {value:.4g} +- {error:.2g}" if error else
+                         f"{label:16s} {value:.4g}")
+    if fit.power_law is not None:
+        p = fit.power_law
+        lines.append(f"dy/d{unit} = -k*y^n: n = {p['n']:.3f} +- {p['n_stderr']:.2g}, k = {p['k']:.4g}")
+    if fit.q_summary:
+        q = fit.q_summary
+        lines.append(f"Q initial {q['initial']:.4g}, final {q['final']:.4g}, "
+                     f"min {q['min']:.4g}, max {q['max']:.4g}")
+    lines.append(f"{fit.n_points} turning points, reduced chi-square {fit.reduced_chi_square:.3g}")
+    return "\n".join(lines)
+
+
+def _draw_record(axes, view, fit):
+    unit_label = view.time_label
+    if view.t is not None:
+        axes.plot(view.t, view.x, color="0.55", lw=0.6, label="record")
+        if view.equilibrium is not None:
+            axes.plot(view.t, view.equilibrium, color="k", lw=0.8, ls=":", label="equilibrium")
+    used = view.used.astype(bool)
+    axes.plot(view.turning_t[used], view.turning_x[used], "o", ms=3, color="tab:blue",
+              label="turning points used")
+    if np.any(~used):
+        axes.plot(view.turning_t[~used], view.turning_x[~used], "x", ms=4, color="tab:red",
+                  label="left out")
+    t_fine = np.linspace(fit.t[0], fit.t[-1], 800)
+    envelope = fit.amplitude(t_fine)
+    if view.t is not None and view.equilibrium is not None:
+        centre = np.interp(t_fine, view.t, view.equilibrium)
+        axes.plot(t_fine, centre + envelope, color="tab:red", lw=1.2, label="fitted envelope")
+        axes.plot(t_fine, centre - envelope, color="tab:red", lw=1.2)
+    else:
+        axes.plot(t_fine, envelope, color="tab:red", lw=1.2, label="fitted envelope")
+    axes.set_xlabel(unit_label)
+    axes.set_ylabel(view.signal_label)
+    axes.set_title("record and turning points")
+    axes.legend(loc="upper right", fontsize=8)
+
+
+def _draw_amplitudes(axes, axes_residual, view, fit):
+    t_fine = np.linspace(fit.t[0], fit.t[-1], 600)
+    axes.errorbar(fit.t, fit.y, yerr=fit.sigma, fmt="o", ms=3, color="tab:blue", elinewidth=0.8,
+                  label="amplitudes")
+    label = f"selected fit ({fit.model})"
+    axes.plot(t_fine, fit.amplitude(t_fine), color="tab:red", lw=1.6, label=label)
+    for candidate in fit.candidates:
+        if candidate.model in _SINGLE_STYLE and candidate.model != fit.model:
+            color, name = _SINGLE_STYLE[candidate.model]
+            v = candidate.values
+            axes.plot(t_fine, decay.amplitude(t_fine - fit.t0, v["y0"], v["a"], v["b"], v["c"]),
+                      color=color, lw=1.0, ls="--", label=name)
+    axes.set_yscale("log")
+    axes.set_ylabel(f"amplitude ({view.signal_label})")
+    axes.set_title("amplitudes: selected fit against single-regime fits")
+    axes.legend(loc="upper right", fontsize=8)
+    axes.tick_params(labelbottom=False)
+    residuals = (fit.y - fit.y_fit) / fit.sigma
+    axes_residual.axhline(0.0, color="k", lw=0.6)
+    axes_residual.plot(fit.t, residuals, "o", ms=2.5, color="tab:blue")
+    axes_residual.set_xlabel(view.time_label)
+    axes_residual.set_ylabel("residual / sigma")
+
+
+def _draw_q(axes, view, fit):
+    axes.set_title("quality factor Q and its parts")
+    axes.set_xlabel(view.time_label)
+    axes.set_ylabel("Q")
+    if fit.q is None:
+        axes.text(0.5, 0.5, "Q needs the period: not known for this record", ha="center",
+                  transform=axes.transAxes)
+        return
+    axes.plot(fit.t, fit.q, color="k", lw=1.6, label="Q total")
+    if fit.q_stderr is not None:
+        axes.fill_between(fit.t, fit.q - 1.96 * fit.q_stderr, fit.q + 1.96 * fit.q_stderr,
+                          color="0.6", alpha=0.4, label="95 % band")
+    if fit.q_parts is not None:
+        for key, color in (("fluid", "tab:orange"), ("hysteretic", "tab:green"),
+                           ("coulomb", "tab:purple")):
+            part = fit.q_parts[key]
+            if np.all(np.isfinite(part)):
+                axes.plot(fit.t, part, color=color, lw=1.0, ls="--",
+                          label=f"Q {key}".replace("coulomb", "Coulomb"))
+    finite = fit.q[np.isfinite(fit.q)]
+    if finite.size:
+        axes.set_ylim(0.0, 2.5 * finite.max())
+    axes.legend(loc="upper left", fontsize=8)
+
+
+def _draw_rate(axes, view, fit):
+    """-(dy/dt)/y against y: constant for hysteretic, rising for fluid, 1/y for Coulomb."""
+    unit = "s" if fit.domain == "time" else "cycle"
+    t, y = fit.t, fit.y
+    # Rate between neighbouring amplitudes, over spans long enough to beat the noise.
+    span = max(1, t.size // 25)
+    t_pair, y_start, y_end = t[span:] - t[:-span], y[:-span], y[span:]
+    valid = (y_start > 0) & (y_end > 0)
+    rate = np.log(y_start[valid] / y_end[valid]) / t_pair[valid]
+    y_mid = np.sqrt(y_start[valid] * y_end[valid])
+    axes.plot(y_mid, rate, "o", ms=3, color="tab:blue", label="from amplitudes")
+    y_fine = np.linspace(max(y.min(), 1e-12), y.max(), 300)
+    v = fit.values
+    if fit.power_law is None:
+        model_rate = decay.decay_rate(y_fine, v["a"], v["b"], v["c"]) / y_fine
+    else:
+        model_rate = fit.power_law["k"] * y_fine ** (fit.power_law["n"] - 1)
+    axes.plot(y_fine, model_rate, color="tab:red", lw=1.6, label="model c/y + b + a*y")
+    axes.set_xlabel(f"amplitude y ({view.signal_label})")
+    axes.set_ylabel(f"-(dy/dt)/y (1/{unit})")
+    axes.set_title("damping rate against amplitude")
+    axes.legend(loc="best", fontsize=8)
+
+
+def save_figure(figure: Figure, path) -> None:
+    """Write the figure whole or not at all (temporary file, then rename); format from suffix."""
+    path = Path(path)
+    suffix = path.suffix.lower().lstrip(".")
+    if suffix not in {"png", "pdf", "svg"}:
+        raise ValueError(f"plot file {path} must end in .png, .pdf or .svg")
+    handle, temporary = tempfile.mkstemp(dir=path.parent or ".", suffix=path.suffix,
+                                         prefix=f".{path.name}.")
+    os.close(handle)
+    try:
+        figure.savefig(temporary, format=suffix, dpi=110)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(temporary, 0o666 & ~umask)  # mkstemp makes 0600; give the usual mode
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise

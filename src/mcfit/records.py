@@ -1,0 +1,750 @@
+"""Reading decay records (CSV, TSV, semicolon, whitespace text, Excel, stdin) into a :class:`Record`.
+
+This is the only module that imports pandas. It turns whatever file a person has into two
+float64 arrays, ``t`` and ``x``, and says in ``Record.notes`` what it decided on the way
+(columns chosen, decimal commas, padding dropped, timestamps ignored...). Every failure a
+person can fix raises :class:`mcfit.errors.InputError` (or ``UsageError`` for contradictory
+options) with one line naming the file, the problem and the fix.
+
+Column choice without options: a column named like time (``time``, ``t``, ``time (s)``...)
+or else the first strictly increasing column is the time; the signal is the first other
+column that oscillates (velocity, acceleration, residual and fit columns come last).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import re
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from mcfit.errors import InputError, UsageError
+
+__all__ = ["Record", "read_record", "TEXT_EXTENSIONS", "EXCEL_EXTENSIONS"]
+
+TEXT_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat")
+EXCEL_EXTENSIONS = (".xlsx", ".xlsm")
+KINDS = ("waveform", "turning-points")
+DOMAINS = ("time", "cycle")
+
+# Bytes sniffed to choose separator, decimal mark, header and columns.
+_SNIFF_BYTES = 1 << 20
+_TIME_NAMES = {"time", "t", "times", "tempo", "zeit", "temps", "tiempo", "seconds", "sec",
+               "timestamp", "stamp", "elapsed", "elapsed time"}
+_CYCLE_NAMES = {"n", "cycle", "cycles", "cycle number", "swing", "swings", "period number",
+                "peak", "peak number", "k", "index"}
+_SECONDARY_SIGNAL_WORDS = ("vel", "speed", "acc", "resid", "error", "err", "fit", "model",
+                           "derivative")
+_NUMBER = re.compile(r"^[+-]?(\d+([.,]\d*)?|[.,]\d+)([eE][+-]?\d+)?$")
+_COMMA_DECIMAL = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
+_UNIT = re.compile(r"^(.*?)\s*[\(\[]\s*([^\)\]]*)\s*[\)\]]\s*$")
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """A decay record as read from a file: plain arrays plus what was decided on the way.
+
+    Attributes
+    ----------
+    source : str
+        File name as given (``"<stdin>"`` for ``-`` or a stream).
+    t : ndarray, shape (n,)
+        Time (in ``time_unit``, seconds unless the header says otherwise) or cycle number
+        (``domain == "cycle"``). Increasing for waveforms; turning-point tables are sorted.
+    x : ndarray, shape (n,)
+        Signal (waveform) or turning-point values (signed or not); NaN marks a gap.
+    kind : {"waveform", "turning-points"}
+    domain : {"time", "cycle"}
+    time_column, signal_column : str or None
+        Column names as in the file (``"column 2"`` without a header); ``time_column`` is
+        None when the time was built from ``rate``.
+    time_unit, signal_unit : str or None
+        Units read from headers such as ``time (s)``.
+    columns : tuple of str
+        Every column of the file, in order.
+    notes : tuple of str
+        One sentence per decision or oddity, for the report.
+    """
+
+    source: str
+    t: np.ndarray
+    x: np.ndarray
+    kind: str = "waveform"
+    domain: str = "time"
+    time_column: str | None = None
+    signal_column: str | None = None
+    time_unit: str | None = None
+    signal_unit: str | None = None
+    columns: tuple[str, ...] = ()
+    notes: tuple[str, ...] = field(default=())
+
+    def to_dict(self):
+        """Plain-Python summary (no arrays), ready for JSON."""
+        finite = np.isfinite(self.t)
+        return {
+            "source": self.source, "kind": self.kind, "domain": self.domain,
+            "time_column": self.time_column, "signal_column": self.signal_column,
+            "time_unit": self.time_unit, "signal_unit": self.signal_unit,
+            "columns": list(self.columns), "samples": int(self.t.size),
+            "t_start": float(self.t[finite][0]) if finite.any() else None,
+            "t_end": float(self.t[finite][-1]) if finite.any() else None,
+            "notes": list(self.notes),
+        }
+
+
+def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None,
+                input=None, domain=None):  # noqa: A002 - mirrors the --input option
+    """Read a decay record from a file, ``"-"`` (stdin) or an open stream.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or file-like
+        ``.csv``, ``.tsv``, ``.txt``, ``.dat`` (separator sniffed: comma, semicolon, tab or
+        whitespace; decimal comma accepted), ``.xlsx``/``.xlsm``, ``"-"`` for stdin, or an
+        open text or binary stream holding delimited text.
+    time_col, signal_col : str or int, optional
+        Column name (units in parentheses may be left out, case ignored) or 1-based index.
+    sheet : str or int, optional
+        Excel sheet name or 1-based index (default: the first sheet).
+    rate : float, optional
+        Sample rate in Hz: ``t = index / rate`` (for files without a usable time column).
+    input : {"waveform", "turning-points"}, optional
+        Override the detected kind of record.
+    domain : {"time", "cycle"}, optional
+        Override the detected meaning of the time column (seconds or cycle number n).
+
+    Returns
+    -------
+    Record
+
+    Raises
+    ------
+    InputError
+        The file cannot be read or holds no usable columns (message: file, problem, fix).
+    UsageError
+        Contradictory or invalid options.
+    """
+    if input is not None and input not in KINDS:
+        raise UsageError(f"input must be 'waveform' or 'turning-points', not {input!r}.")
+    if domain is not None and domain not in DOMAINS:
+        raise UsageError(f"domain must be 'time' or 'cycle', not {domain!r}.")
+    if rate is not None:
+        try:
+            rate = float(rate)
+        except (TypeError, ValueError):
+            raise UsageError(f"rate must be a number of samples per second, not {rate!r}.")
+        if not np.isfinite(rate) or rate <= 0:
+            raise UsageError(f"rate must be a positive number of samples per second, not {rate}.")
+        if time_col is not None:
+            raise UsageError("give either a time column or a sample rate, not both.")
+    table = _open_table(source, sheet)
+    return _build_record(table, time_col, signal_col, rate, input, domain)
+
+
+# --------------------------------------------------------------------------- opening
+
+
+class _Table:
+    """Column names plus a way to read chosen columns as float64."""
+
+    def __init__(self, name, names, sample, reader, notes):
+        self.name = name          # file name for messages
+        self.names = names        # list of column labels as shown to a user
+        self.sample = sample      # DataFrame of floats (NaN where not numeric), first rows
+        self.reader = reader      # callable(list of 0-based indices) -> DataFrame of float64
+        self.notes = notes
+
+
+def _open_table(source, sheet):
+    if hasattr(source, "read"):
+        data = source.read()
+        name = getattr(source, "name", None)
+        name = name if isinstance(name, str) and not name.startswith("<") else "<stdin>"
+        if isinstance(name, str) and name != "<stdin>":
+            name = os.path.basename(name)
+        return _text_table(name, _to_bytes(data), None)
+    if isinstance(source, str) and source == "-":
+        return _text_table("<stdin>", _to_bytes(sys.stdin.buffer.read()), None)
+    path = Path(source)
+    name = path.name
+    if not path.exists():
+        raise InputError(f"file not found: {source}. Check the path and the working directory.")
+    if path.is_dir():
+        raise InputError(f"{source} is a directory, not a file. Give a data file inside it.")
+    suffix = path.suffix.lower()
+    if suffix in EXCEL_EXTENSIONS:
+        return _excel_table(path, name, sheet)
+    if suffix in (".xls", ".ods", ".numbers"):
+        raise InputError(f"unsupported file type '{suffix}' for {name}; save it as .xlsx or "
+                         "export it as CSV.")
+    if suffix not in TEXT_EXTENSIONS:
+        raise InputError(f"unsupported file type '{suffix or '(none)'}' for {name}; use .csv, "
+                         ".tsv, .txt, .dat or .xlsx (or rename a delimited text file to .csv).")
+    if sheet is not None:
+        raise UsageError(f"--sheet applies to Excel files only, and {name} is a text file.")
+    try:
+        with open(path, "rb") as handle:
+            head = handle.read(_SNIFF_BYTES)
+    except OSError as exc:
+        raise InputError(f"cannot read {name}: {exc.strerror}. Check its permissions.") from None
+    return _text_table(name, head, path)
+
+
+def _to_bytes(data):
+    return data.encode("utf-8") if isinstance(data, str) else bytes(data)
+
+
+def _decode(head):
+    """(text, encoding, note) for the sniffed bytes."""
+    if head.startswith(b"\xef\xbb\xbf"):
+        return head[3:].decode("utf-8", errors="ignore"), "utf-8-sig", "byte-order mark skipped"
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):
+        return head.decode("utf-16", errors="ignore"), "utf-16", "UTF-16 text"
+    try:
+        return head.decode("utf-8"), "utf-8", None
+    except UnicodeDecodeError as exc:
+        if exc.start > len(head) - 4:  # a character cut by the sniff limit
+            return head[:exc.start].decode("utf-8"), "utf-8", None
+        return head.decode("latin-1"), "latin-1", None
+
+
+def _split(line, sep):
+    if sep is None:
+        return line.split()
+    return [f.strip().strip('"').strip("'").strip() for f in line.split(sep)]
+
+
+def _is_number(token):
+    return bool(_NUMBER.match(token.strip())) or token.strip().lower() in ("nan", "inf", "-inf")
+
+
+def _text_table(name, head, path):
+    if not head.strip():
+        raise InputError(f"{name} is empty. Give a file with a time and a signal column.")
+    text, encoding, enc_note = _decode(head)
+    notes = [enc_note] if enc_note else []
+    lines = text.splitlines()
+    if path is not None and len(head) == _SNIFF_BYTES and lines:
+        lines = lines[:-1]  # the last line may be cut by the sniff limit
+    # Data lines: not blank, not a comment.
+    comment_chars = set()
+    first_content = None
+    content = []
+    for number, line in enumerate(lines):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped[0] in "#%":
+            comment_chars.add(stripped[0])
+            continue
+        if first_content is None:
+            first_content = number
+        content.append((number, stripped))
+        if len(content) >= 200:
+            break
+    if not content:
+        raise InputError(f"{name} holds only comments or blank lines. Give a file with data rows.")
+    sep, decimal = _sniff_separator([line for _, line in content[:50]])
+    first_fields = _split(content[0][1], sep)
+    has_header = not all(_is_number(f) or f == "" for f in first_fields)
+    if has_header:
+        names = _header_names(content[0][1], sep, content[1:])
+        data_start = content[1][0] if len(content) > 1 else None
+        if data_start is None:
+            raise InputError(f"{name} has a header row but no data rows. Give a file with "
+                             "data below the header.")
+    else:
+        ncols = max(len(_split(line, sep)) for _, line in content[:50])
+        names = [f"column {i + 1}" for i in range(ncols)]
+        data_start = content[0][0]
+    if decimal == ",":
+        notes.append("decimal commas read as decimal points")
+    if comment_chars:
+        notes.append("comment lines starting with " + " or ".join(sorted(comment_chars))
+                     + " skipped")
+    comment = "#" if "#" in comment_chars else ("%" if comment_chars else None)
+    other_comment = "%" if comment == "#" and "%" in comment_chars else None
+
+    def source_bytes():
+        if path is None:
+            return io.BytesIO(head)
+        return path
+
+    def reader(indices, nrows=None, as_text=False):
+        kwargs = dict(
+            sep=r"\s+" if sep is None else sep, decimal=decimal, header=None,
+            skiprows=_skip_rows(data_start, lines, other_comment), usecols=list(indices),
+            comment=comment, skip_blank_lines=True, encoding=encoding, engine="c",
+            nrows=nrows, quotechar='"', skipinitialspace=sep is not None,
+        )
+        if as_text:
+            kwargs["dtype"] = str
+            kwargs["keep_default_na"] = False
+        else:
+            kwargs["dtype"] = np.float64
+        if sep is None:
+            kwargs.pop("skipinitialspace")
+        return pd.read_csv(source_bytes(), **kwargs)
+
+    sample_text = "\n".join(lines[data_start:data_start + 20000])
+    sample = _numeric_frame(pd.read_csv(
+        io.StringIO(sample_text), sep=r"\s+" if sep is None else sep, header=None, dtype=str,
+        comment=comment, skip_blank_lines=True, engine="c", keep_default_na=False,
+        names=range(len(names)), index_col=False, on_bad_lines="skip",
+    ), decimal)
+    return _Table(name, names, sample, reader, notes)
+
+
+def _skip_rows(data_start, lines, other_comment):
+    skip = list(range(data_start))
+    if other_comment:
+        skip += [i for i, line in enumerate(lines)
+                 if i >= data_start and line.strip().startswith(other_comment)]
+    return skip
+
+
+def _sniff_separator(lines):
+    """(sep, decimal): sep None means whitespace."""
+    def consistent(sep):
+        counts = [len(_split(line, sep)) for line in lines]
+        return min(counts) >= 2 and max(counts) - min(counts) <= max(counts) // 2
+
+    data_lines = lines[1:] if len(lines) > 1 else lines
+    for sep in (";", "\t"):
+        if all(sep in line for line in data_lines) and consistent(sep):
+            fields = [f for line in data_lines for f in _split(line, sep) if f]
+            decimal = "," if any(_COMMA_DECIMAL.match(f) for f in fields) else "."
+            return sep, decimal
+    ws_fields = [line.split() for line in data_lines]
+    if "," in "".join(data_lines):
+        # "1,5 2,25": whitespace-separated with decimal commas, not CSV.
+        if (all(len(f) >= 2 for f in ws_fields)
+                and all(_COMMA_DECIMAL.match(tok) or _is_number(tok) and "," not in tok
+                        for f in ws_fields for tok in f)
+                and any(_COMMA_DECIMAL.match(tok) for f in ws_fields for tok in f)):
+            return None, ","
+        return ",", "."
+    return None, "."
+
+
+def _header_names(line, sep, content):
+    if sep is not None:
+        names = _split(line, sep)
+    else:
+        # Whitespace-separated headers: "time (s)" is one name, so glue unit tokens back.
+        names = []
+        for token in line.split():
+            if names and (token[0] in "([" or names[-1].count("(") > names[-1].count(")")
+                          or names[-1].count("[") > names[-1].count("]")):
+                names[-1] = names[-1] + " " + token
+            else:
+                names.append(token)
+    ncols = max((len(_split(other, sep)) for _, other in content[:50]), default=len(names))
+    names = [n if n else f"column {i + 1}" for i, n in enumerate(names)]
+    names += [f"column {i + 1}" for i in range(len(names), ncols)]
+    seen = {}
+    for i, n in enumerate(names):  # duplicate names (several runs side by side)
+        if n in seen:
+            names[i] = f"{n} ({i + 1})"
+        seen.setdefault(n, i)
+    return names
+
+
+def _numeric_frame(frame, decimal):
+    out = {}
+    for column in frame.columns:
+        values = frame[column].astype(str).str.strip()
+        if decimal == ",":
+            values = values.str.replace(",", ".", regex=False)
+        out[column] = pd.to_numeric(values.replace("", np.nan), errors="coerce")
+    return pd.DataFrame(out, dtype=np.float64)
+
+
+def _sheet_name(sheets, sheet, name):
+    """The sheet named or numbered (1-based) by the user; the first by default."""
+    if sheet is None:
+        return sheets[0]
+    if isinstance(sheet, int) or (isinstance(sheet, str) and sheet.isdigit()
+                                  and sheet not in sheets):
+        index = int(sheet)
+        if not 1 <= index <= len(sheets):
+            raise UsageError(f"sheet {index} not found in {name}; it has {len(sheets)} "
+                             f"sheet(s): {', '.join(sheets)}. Use --sheet with a name or "
+                             "1-based index.")
+        return sheets[index - 1]
+    if sheet in sheets:
+        return sheet
+    raise UsageError(f"sheet '{sheet}' not found in {name}; sheets are: {', '.join(sheets)}. "
+                     "Use --sheet.")
+
+
+def _excel_table(path, name, sheet):
+    try:
+        book = pd.ExcelFile(path, engine="openpyxl")
+    except Exception as exc:  # zipfile.BadZipFile, KeyError, ValueError... from openpyxl
+        raise InputError(f"cannot read {name} as an Excel workbook ({type(exc).__name__}): the "
+                         "file is damaged or not .xlsx. Re-save it from Excel or export "
+                         "CSV.") from None
+    try:
+        sheet_name = _sheet_name(book.sheet_names, sheet, name)
+        raw = pd.read_excel(book, sheet_name=sheet_name, header=None)
+    except (InputError, UsageError):
+        raise
+    except Exception as exc:
+        raise InputError(f"cannot read sheet {sheet!r} of {name} ({type(exc).__name__}). "
+                         "Re-save the workbook or export CSV.") from None
+    finally:
+        book.close()
+    raw = raw.dropna(how="all").dropna(axis=1, how="all")
+    if raw.empty:
+        raise InputError(f"sheet '{sheet_name}' of {name} is empty. Choose the sheet holding "
+                         "the data with --sheet.")
+    raw.columns = range(raw.shape[1])
+    first = raw.iloc[0]
+    has_header = any(isinstance(v, str) and not _is_number(v) for v in first)
+    if has_header:
+        names = [str(v).strip() if isinstance(v, str) or not pd.isna(v) else f"column {i + 1}"
+                 for i, v in enumerate(first)]
+        body = raw.iloc[1:]
+        if body.empty:
+            raise InputError(f"sheet '{sheet_name}' of {name} has a header row but no data "
+                             "rows. Add data below the header.")
+    else:
+        names = [f"column {i + 1}" for i in range(raw.shape[1])]
+        body = raw
+    text = body.astype(str).replace({"nan": "", "None": ""})
+    decimal = "," if text.apply(lambda c: c.str.match(_COMMA_DECIMAL.pattern)).any().any() else "."
+    numeric = _numeric_frame(text, decimal)
+    notes = [f"sheet '{sheet_name}'"]
+    if decimal == ",":
+        notes.append("decimal commas read as decimal points")
+
+    def reader(indices, nrows=None, as_text=False):
+        if as_text:
+            return text.iloc[:, list(indices)]
+        return numeric.iloc[:, list(indices)]
+
+    return _Table(name, names, numeric, reader, notes)
+
+
+# --------------------------------------------------------------------------- choosing
+
+
+def _base_name(label):
+    """'Time (s)' -> ('time', 's'); 'angle' -> ('angle', None)."""
+    match = _UNIT.match(label.strip())
+    if match and match.group(1):
+        return match.group(1).strip().lower(), match.group(2).strip() or None
+    return label.strip().lower(), None
+
+
+def _resolve_column(table, spec, role):
+    option = "--time-col" if role == "time" else "--signal-col"
+    listing = ", ".join(table.names)
+    if isinstance(spec, (int, np.integer)) or (isinstance(spec, str) and spec.strip().isdigit()
+                                              and spec not in table.names):
+        index = int(spec)
+        if not 1 <= index <= len(table.names):
+            raise UsageError(f"column {index} not found in {table.name}; it has "
+                             f"{len(table.names)} columns: {listing}. Use {option} with a "
+                             "1-based index or a name.")
+        return index - 1
+    spec = str(spec)
+    if spec in table.names:
+        return table.names.index(spec)
+    wanted = _base_name(spec)[0]
+    matches = [i for i, n in enumerate(table.names)
+               if n.strip().lower() == spec.strip().lower() or _base_name(n)[0] == wanted]
+    if len(matches) == 1:
+        return matches[0]
+    if len(matches) > 1:
+        raise UsageError(f"column '{spec}' is ambiguous in {table.name}; columns are: "
+                         f"{listing}. Use {option} with the full name or a 1-based index.")
+    raise UsageError(f"column '{spec}' not found in {table.name}; columns are: {listing}. "
+                     f"Use {option}.")
+
+
+def _strictly_increasing(values):
+    v = values[np.isfinite(values)]
+    return v.size >= 3 and bool(np.all(np.diff(v) > 0))
+
+
+def _oscillation_score(values):
+    """Fraction of steps where the signal crosses its (detrended) middle; 0 if not varying."""
+    v = values[np.isfinite(values)]
+    if v.size < 8 or np.ptp(v) == 0:
+        return 0.0
+    index = np.arange(v.size)
+    trend = np.polyval(np.polyfit(index, v, 1), index)
+    centred = v - trend
+    crossings = np.count_nonzero(np.diff(np.sign(centred)) != 0)
+    return crossings / v.size
+
+
+def _choose_time(table, rate):
+    sample = table.sample
+    named = [i for i, n in enumerate(table.names) if _base_name(n)[0] in _TIME_NAMES]
+    cycle_named = [i for i, n in enumerate(table.names) if _base_name(n)[0] in _CYCLE_NAMES]
+    increasing = [i for i in range(sample.shape[1]) if _strictly_increasing(sample[i].values)]
+    # Logger timestamps that repeat: a time column, but an unusable one.
+    repeating = [i for i in range(sample.shape[1]) if i not in increasing
+                 and _timestamp_problem(sample[i].values) is not None
+                 and np.all(np.diff(sample[i].values[np.isfinite(sample[i].values)]) >= 0)]
+    if rate is not None:
+        return None, named + [i for i in increasing + repeating if i not in named]
+    for candidates in (named, cycle_named):
+        if candidates:
+            return candidates[0], []
+    if increasing:
+        return increasing[0], []
+    if repeating:
+        return repeating[0], []
+    # No increasing column: a turning-point table may list its times unsorted.
+    for i in range(sample.shape[1]):
+        v = sample[i].values
+        v = v[np.isfinite(v)]
+        if v.size >= 4 and np.unique(v).size == v.size and v.size < 5000:
+            return i, []
+    return None, []
+
+
+def _choose_signal(table, time_index, ignored):
+    sample = table.sample
+    candidates = [i for i in range(sample.shape[1])
+                  if i != time_index and i not in ignored
+                  and np.count_nonzero(np.isfinite(sample[i].values)) >= 2
+                  and np.ptp(sample[i].values[np.isfinite(sample[i].values)]) > 0]
+    if not candidates:  # only constant columns: say so when they are read
+        rest = [i for i in range(sample.shape[1]) if i != time_index and i not in ignored
+                and np.isfinite(sample[i].values).any()]
+        return (rest[0], []) if rest else (None, [])
+    secondary = [i for i in candidates
+                 if any(w in _base_name(table.names[i])[0] for w in _SECONDARY_SIGNAL_WORDS)]
+    primary = [i for i in candidates if i not in secondary]
+    oscillating = [i for i in primary if _oscillation_score(sample[i].values) > 0.02]
+    order = oscillating + [i for i in primary if i not in oscillating] + secondary
+    return order[0], [i for i in order[1:]]
+
+
+def _describe(table, index):
+    label = table.names[index]
+    return f"'{label}' (column {index + 1})" if not label.startswith("column ") else label
+
+
+def _detect_kind(t, x):
+    """'turning-points' for a table of extrema or amplitudes, else 'waveform'."""
+    finite = np.isfinite(t) & np.isfinite(x)
+    t, x = t[finite], x[finite]
+    if x.size < 3 or x.size > 5000:
+        return "waveform"
+    order = np.argsort(t, kind="stable")
+    v = x[order]
+    if np.all(v >= 0) or np.all(v <= 0):
+        magnitude = np.abs(v)
+        decreasing = np.count_nonzero(np.diff(magnitude) < 0) / (v.size - 1)
+        return "turning-points" if decreasing >= 0.65 else "waveform"
+    centred = v - np.median(v)
+    alternating = np.count_nonzero(np.diff(np.sign(centred)) != 0) / (v.size - 1)
+    return "turning-points" if alternating >= 0.9 else "waveform"
+
+
+def _read_columns(table, indices):
+    try:
+        frame = table.reader(indices)
+    except ValueError:
+        # Text in a numeric column: find it, to say where.
+        text = table.reader(indices, as_text=True)
+        for position, index in enumerate(indices):
+            values = text.iloc[:, position].astype(str).str.strip()
+            converted = pd.to_numeric(values.str.replace(",", ".", regex=False)
+                                      .replace("", np.nan), errors="coerce")
+            bad = converted.isna() & values.ne("") & ~values.str.lower().isin(
+                ["nan", "na", "n/a", "null", "none", "-nan", "inf", "-inf"])
+            if bad.any():
+                row = int(np.flatnonzero(bad.values)[0])
+                raise InputError(
+                    f"text '{values.iloc[row]}' in numeric column {_describe(table, index)} of "
+                    f"{table.name} (data row {row + 1}). Fix or delete that row, or start it "
+                    "with # to make it a comment.") from None
+        raise
+    except (pd.errors.EmptyDataError, pd.errors.ParserError) as exc:
+        raise InputError(f"cannot parse {table.name}: {str(exc).splitlines()[0]}. Check that "
+                         "every row has the same separator.") from None
+    return [frame.iloc[:, position].to_numpy(dtype=np.float64, copy=False)
+            for position in range(len(indices))]
+
+
+def _timestamp_problem(t):
+    """Describe unusable logger timestamps (repeats or bursts), or None."""
+    finite = t[np.isfinite(t)]
+    if finite.size < 4:
+        return None
+    steps = np.diff(finite)
+    repeats = np.count_nonzero(steps == 0)
+    if repeats > 0 and np.all(steps >= 0):
+        return (f"{repeats} of {steps.size} time steps repeat the previous timestamp "
+                "(the logger stamps samples in bursts)")
+    positive = steps[steps > 0]
+    if positive.size >= 4 and np.all(steps > 0):
+        median = np.median(positive)
+        long_steps = np.count_nonzero(steps > 4 * median)
+        if long_steps >= 3 and long_steps >= 0.05 * steps.size:
+            return (f"time steps come in bursts ({long_steps} of {steps.size} steps are more "
+                    "than 4 times the median step)")
+    return None
+
+
+def _build_record(table, time_col, signal_col, rate, kind, domain):
+    name = table.name
+    notes = list(table.notes)
+    if table.sample.shape[0] == 0 or table.sample.notna().sum().sum() == 0:
+        raise InputError(f"{name} has no numeric data rows. Give a file with a time and a "
+                         "signal column of numbers.")
+    ignored = []
+    if time_col is not None:
+        time_index = _resolve_column(table, time_col, "time")
+    else:
+        time_index, ignored = _choose_time(table, rate)
+    if signal_col is not None:
+        signal_index = _resolve_column(table, signal_col, "signal")
+        others = []
+    else:
+        signal_index, others = _choose_signal(table, time_index, ignored)
+        if signal_index is None:
+            if table.sample.shape[1] == 1 or time_index is None:
+                raise InputError(f"no signal column found in {name} (columns: "
+                                 f"{', '.join(table.names)}). Use --signal-col.")
+            raise InputError(f"no varying signal column in {name} besides the time "
+                             f"{_describe(table, time_index)}; columns are: "
+                             f"{', '.join(table.names)}. Use --signal-col.")
+    if time_index is not None and time_index == signal_index:
+        raise UsageError(f"the time and the signal are the same column "
+                         f"{_describe(table, signal_index)} of {name}. Use --time-col and "
+                         "--signal-col with different columns.")
+    if time_index is None and rate is None:
+        raise InputError(f"no time column found in {name} (no column increases steadily). "
+                         "Name it with --time-col or give the sample rate with --rate HZ.")
+
+    indices = [signal_index] if time_index is None else [time_index, signal_index]
+    columns = _read_columns(table, indices)
+    x = columns[-1]
+    t = columns[0] if time_index is not None else None
+
+    # Side-by-side runs: shorter runs are padded with empty cells at the end.
+    present = np.isfinite(x) if t is None else np.isfinite(t)
+    last = np.flatnonzero(present)
+    if last.size == 0:
+        what = "signal" if t is None else "time"
+        column = signal_index if t is None else time_index
+        raise InputError(f"the {what} column {_describe(table, column)} of {name} holds no "
+                         "numbers. Choose another column with --time-col/--signal-col.")
+    end = last[-1] + 1
+    if end < x.size:
+        notes.append(f"{x.size - end} empty trailing rows dropped (padding)")
+        x = x[:end]
+        t = None if t is None else t[:end]
+    if t is not None:
+        missing_t = ~np.isfinite(t)
+        if missing_t.any():
+            notes.append(f"{int(missing_t.sum())} rows without a time value dropped")
+            t, x = t[~missing_t], x[~missing_t]
+    if not np.isfinite(x).any():
+        raise InputError(f"the signal column {_describe(table, signal_index)} of {name} holds "
+                         "no numbers (all empty or NaN). Choose the signal with --signal-col.")
+    finite_x = x[np.isfinite(x)]
+    if np.ptp(finite_x) == 0:
+        raise InputError(f"the signal column {_describe(table, signal_index)} of {name} is "
+                         f"constant ({finite_x[0]:g}). Choose the signal with --signal-col.")
+    # Trailing NaN in the signal alone (a shorter run sharing the time column).
+    last_x = np.flatnonzero(np.isfinite(x))[-1] + 1
+    if last_x < x.size:
+        notes.append(f"{x.size - last_x} trailing rows without a signal value dropped")
+        x = x[:last_x]
+        t = None if t is None else t[:last_x]
+
+    time_unit = _base_name(table.names[time_index])[1] if time_index is not None else "s"
+    signal_unit = _base_name(table.names[signal_index])[1]
+    time_label = table.names[time_index] if time_index is not None else None
+
+    if rate is not None:
+        if ignored:
+            probe = table.sample[ignored[0]].values
+            problem = _timestamp_problem(probe)
+            text = f"; its timestamps are unusable: {problem}" if problem else ""
+            notes.append(f"time built from the sample rate {rate:g} Hz; column "
+                         f"{_describe(table, ignored[0])} ignored{text}")
+        else:
+            notes.append(f"time built from the sample rate {rate:g} Hz")
+        t = np.arange(x.size, dtype=np.float64) / rate
+        detected_kind = "waveform"
+    else:
+        detected_kind = _detect_kind(t, x)
+    chosen_kind = kind or detected_kind
+    if kind is None and detected_kind == "turning-points":
+        notes.append("read as a table of turning points (override with --input waveform)")
+
+    if chosen_kind == "turning-points":
+        finite = np.isfinite(t) & np.isfinite(x)
+        if np.count_nonzero(~finite):
+            notes.append(f"{int(np.count_nonzero(~finite))} incomplete rows dropped")
+        t, x = t[finite], x[finite]
+        if np.unique(t).size != t.size:
+            raise InputError(f"the time column {_describe(table, time_index)} of {name} repeats "
+                             "values in a turning-point table. Remove the duplicate rows.")
+        if not np.all(np.diff(t) > 0):
+            order = np.argsort(t, kind="stable")
+            t, x = t[order], x[order]
+            notes.append("turning points sorted by time")
+    else:
+        steps = np.diff(t)
+        if not np.all(steps > 0):
+            problem = _timestamp_problem(t)
+            where = int(np.flatnonzero(~(steps > 0))[0]) + 1
+            if problem:
+                raise InputError(f"the time column {_describe(table, time_index)} of {name} is "
+                                 f"unusable: {problem}. Give the sample rate with --rate HZ.")
+            raise InputError(f"the time column {_describe(table, time_index)} of {name} does "
+                             f"not increase (data row {where + 1}: {t[where - 1]:g} then "
+                             f"{t[where]:g}). Sort the file, choose another column with "
+                             "--time-col, or use --rate HZ.")
+        problem = _timestamp_problem(t)
+        if problem:
+            notes.append(f"irregular timestamps: {problem}; if the logger stamps samples in "
+                         "bursts, use --rate HZ")
+        gaps = np.count_nonzero(~np.isfinite(x))
+        if gaps:
+            notes.append(f"{gaps} samples without a signal value (gaps)")
+
+    if domain is None:
+        domain = "time"
+        if time_index is not None and (_base_name(table.names[time_index])[0] in _CYCLE_NAMES):
+            domain = "cycle"
+        elif (chosen_kind == "turning-points" and t.size >= 2 and np.all(t == np.round(t))
+              and np.all(np.diff(t) == np.diff(t)[0]) and time_unit is None):
+            domain = "cycle"
+        if domain == "cycle":
+            notes.append("time column read as cycle number n (override with --domain time)")
+
+    if time_index is not None and time_col is None:
+        notes.append(f"time column: {_describe(table, time_index)} (chosen automatically; "
+                     "use --time-col to change)")
+    if signal_col is None:
+        other = ""
+        if others:
+            other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
+        notes.append(f"signal column: {_describe(table, signal_index)} (chosen automatically; "
+                     f"use --signal-col to change{other})")
+
+    t = np.ascontiguousarray(t, dtype=np.float64)
+    x = np.ascontiguousarray(x, dtype=np.float64)
+    t.setflags(write=False)
+    x.setflags(write=False)
+    return Record(source=name, t=t, x=x, kind=chosen_kind, domain=domain,
+                  time_column=time_label, signal_column=table.names[signal_index],
+                  time_unit=time_unit, signal_unit=signal_unit,
+                  columns=tuple(table.names), notes=tuple(notes))

@@ -1,0 +1,870 @@
+"""Turning points (extrema) of a free-decay record: times, amplitudes and their uncertainties.
+
+THEORY.md section 5, steps 1 and 2. numpy/scipy only, no I/O.
+
+Method for a waveform x(t):
+
+1. A coarse period from the spectrum and the white-noise level from the spectrum's floor
+   above 2.5 times the oscillation frequency.
+2. Coarse extrema: the signal, lightly smoothed, minus a straight-line equilibrium, is split
+   into half-cycles by crossings with hysteresis (so noise cannot make false extrema).
+3. Each amplitude is a least-squares fit over its half-cycle (the samples within a quarter
+   period either side of the crest) of ``x - e(t) = exp(-g*s)*(A*cos(w*s) + B*sin(w*s))``,
+   ``s = t - t_k``, with the local angular frequency ``w`` and decay rate ``g`` taken from the
+   neighbouring turning points. With only A and B free its variance is ``2*sigma_x**2/m`` for
+   ``m`` samples (THEORY.md section 7), and the envelope's own decay does not bias it. The
+   crest time is where the fitted phase is 0 or pi; the amplitude is the envelope there.
+   Windows are re-centred and the fit repeated.
+4. The equilibrium ``e(t) = e0 + e1*t`` is refined from the alternation of the amplitudes: an
+   offset error raises every maximum and lowers every minimum, which second differences of
+   the amplitude sequence isolate.
+5. Clipped crests, half-cycles broken by gaps and the noise-floor tail are excluded and
+   reported; beating, growth and too few turning points raise :class:`RecordError`.
+
+The amplitude reported is the envelope ``y(t_k)`` at the crest of the phase; ``|x - e|`` where
+the velocity vanishes is smaller by the factor ``1/sqrt(1 + 1/(4*Q**2))``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from mcfit.errors import RecordError
+
+__all__ = [
+    "TurningPoints",
+    "find_turning_points",
+    "turning_points_from_table",
+    "turning_points_of",
+    "MIN_TURNING_POINTS",
+]
+
+MIN_TURNING_POINTS = 4
+# Samples processed at once in the local fits (bounds the memory of a 1e7-sample record).
+_BLOCK_SAMPLES = 1 << 20
+# Longest stretch fed to the FFT for the coarse period and noise level.
+_SPECTRUM_SAMPLES = 1 << 21
+_REFINE_PASSES = 4
+# An amplitude below FLOOR_FACTOR times the floor level is dominated by the floor.
+FLOOR_FACTOR = 1.5
+
+
+@dataclass(frozen=True, eq=False)
+class TurningPoints:
+    """Turning points of a record, with what was excluded and why.
+
+    Attributes
+    ----------
+    t : ndarray, shape (k,)
+        Crest times (time units of the record, or cycle number n).
+    y : ndarray, shape (k,)
+        Amplitudes about the equilibrium, >= 0 (signal units).
+    sigma : ndarray, shape (k,)
+        Standard deviation estimate of each amplitude.
+    sign : ndarray of int, shape (k,)
+        +1 for a maximum, -1 for a minimum (0 if unknown, as in unsigned tables).
+    used : ndarray of bool, shape (k,)
+        The points a fit should use.
+    excluded_reason : tuple of str
+        "" for used points, else "noise floor", "clipped", "gap" or "edge".
+    period : float
+        Oscillation period from the turning-point spacing (NaN if unknown).
+    period_sigma : float
+        Its standard error.
+    period_drift : float
+        Relative change of the period from the smallest to the largest used amplitude,
+        (T(y_max) - T(y_min))/T; positive when large swings are slower.
+    period_drift_sigma : float
+    equilibrium : float
+        Equilibrium value at the first sample.
+    equilibrium_drift : float
+        Slope of the equilibrium (signal units per time unit).
+    noise_sigma : float
+        Standard deviation of the sample noise (NaN for tables).
+    noise_floor : float
+        Amplitude level of the noise floor (0 if none was found).
+    noise_floor_time : float
+        Time from which the tail was excluded as noise floor (NaN if none).
+    gaps : tuple of (float, float)
+        Start and end times of gaps in the record.
+    domain : {"time", "cycle"}
+    notes : tuple of str
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    sigma: np.ndarray
+    sign: np.ndarray
+    used: np.ndarray
+    excluded_reason: tuple[str, ...]
+    period: float = float("nan")
+    period_sigma: float = float("nan")
+    period_drift: float = float("nan")
+    period_drift_sigma: float = float("nan")
+    equilibrium: float = 0.0
+    equilibrium_drift: float = 0.0
+    noise_sigma: float = float("nan")
+    noise_floor: float = 0.0
+    noise_floor_time: float = float("nan")
+    gaps: tuple[tuple[float, float], ...] = ()
+    domain: str = "time"
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def count(self):
+        """Number of used turning points."""
+        return int(np.count_nonzero(self.used))
+
+    def to_dict(self):
+        """Plain Python data (lists, floats, None for NaN), ready for JSON."""
+        def number(value):
+            value = float(value)
+            return value if np.isfinite(value) else None
+
+        return {
+            "t": [float(v) for v in self.t],
+            "y": [float(v) for v in self.y],
+            "sigma": [number(v) for v in self.sigma],
+            "sign": [int(v) for v in self.sign],
+            "used": [bool(v) for v in self.used],
+            "excluded_reason": list(self.excluded_reason),
+            "period": number(self.period),
+            "period_sigma": number(self.period_sigma),
+            "period_drift": number(self.period_drift),
+            "period_drift_sigma": number(self.period_drift_sigma),
+            "equilibrium": number(self.equilibrium),
+            "equilibrium_drift": number(self.equilibrium_drift),
+            "noise_sigma": number(self.noise_sigma),
+            "noise_floor": number(self.noise_floor),
+            "noise_floor_time": number(self.noise_floor_time),
+            "gaps": [[float(a), float(b)] for a, b in self.gaps],
+            "domain": self.domain,
+            "notes": list(self.notes),
+        }
+
+
+def turning_points_of(record, **options):
+    """Turning points of a :class:`mcfit.records.Record` (waveform or turning-point table).
+
+    ``options`` go to :func:`find_turning_points` or :func:`turning_points_from_table`.
+    """
+    source = getattr(record, "source", "record")
+    if record.kind == "turning-points":
+        return turning_points_from_table(record.t, record.x, domain=record.domain,
+                                         source=source, **options)
+    return find_turning_points(record.t, record.x, domain=record.domain, source=source,
+                               **options)
+
+
+# --------------------------------------------------------------------------- waveforms
+
+
+def find_turning_points(t, x, *, period=None, domain="time", source="record"):
+    """Turning points of a sampled waveform x(t), with amplitudes from half-cycle fits.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times, strictly increasing (any spacing).
+    x : ndarray, shape (n,)
+        Signal; NaN marks missing samples (gaps). Offset and linear drift are estimated.
+    period : float, optional
+        Period guess in units of ``t`` (default: from the spectrum).
+    domain : {"time", "cycle"}
+        Meaning of ``t``, passed through to the result.
+    source : str
+        Name of the record for messages.
+
+    Returns
+    -------
+    TurningPoints
+
+    Raises
+    ------
+    RecordError
+        Constant or all-NaN signal, time not increasing, no oscillation above the noise,
+        beating, a growing oscillation, or fewer than 4 usable turning points.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    if t.ndim != 1 or t.shape != x.shape:
+        raise ValueError("t and x must be 1-D arrays of the same length")
+    finite = np.isfinite(x)
+    if not finite.any():
+        raise RecordError(f"the signal of {source} is all NaN. Choose the signal column with "
+                          "--signal-col.")
+    if not np.all(np.isfinite(t)):
+        raise RecordError(f"the time of {source} has missing values. Remove those rows or "
+                          "use --rate HZ.")
+    if t.size > 1 and not np.all(np.diff(t) > 0):
+        raise RecordError(f"the time of {source} does not increase. Sort the record or use "
+                          "--rate HZ.")
+    notes = []
+    if not finite.all():
+        tf, xf = t[finite], x[finite]
+    else:
+        tf, xf = t, x
+    if tf.size < 16:
+        raise RecordError(f"{source} has only {tf.size} samples. A waveform needs several "
+                          "cycles of at least 8 samples each.")
+    if np.ptp(xf) == 0:
+        raise RecordError(f"the signal of {source} is constant ({xf[0]:g}). Choose the signal "
+                          "column with --signal-col.")
+
+    steps = np.diff(tf)
+    dt = float(np.median(steps))
+    gaps = _find_gaps(t, finite, tf, steps, dt)
+    if gaps:
+        total = sum(b - a for a, b in gaps)
+        notes.append(f"{len(gaps)} gap(s) in the record, {total:.4g} time units in all "
+                     f"(longest from {max(gaps, key=lambda g: g[1] - g[0])[0]:.6g})")
+
+    spectral_period, noise = _spectrum(tf, xf, dt, steps)
+    if period is None:
+        period = spectral_period
+    period = float(period)
+    if not np.isfinite(period) or period <= 2 * dt:
+        raise RecordError(f"no oscillation found in {source}: the spectrum peaks at a period "
+                          f"of {period:.3g}, under 2 samples. Check the signal column.")
+    samples_per_cycle = period / dt
+
+    # Coarse equilibrium: a straight line through the data.
+    e0, e1, t_ref = _line_fit(tf, xf)
+    centres, signs, threshold = _coarse_extrema(tf, xf, e0, e1, t_ref, period, samples_per_cycle, noise,
+                                     source)
+
+    gamma = np.zeros(centres.size)
+    valid = np.ones(centres.size, dtype=bool)
+    for _ in range(_REFINE_PASSES):
+        half = _local_half_periods(centres, period, valid)
+        fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
+        centres = centres + np.where(fit.valid, np.clip(fit.shift, -half / 4, half / 4), 0.0)
+        keep = np.concatenate([[True], np.diff(centres) > 0.25 * half[1:]])
+        centres, signs, valid, y = centres[keep], signs[keep], fit.valid[keep], fit.y[keep]
+        half = _local_half_periods(centres, period, valid)
+        gamma = _local_decay_rates(centres, y, np.pi / half, valid)
+        # Equilibrium update from the alternation of maxima and minima.
+        fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
+        fit.valid &= ~_clipped(fit, signs)  # flattened crests would bias the equilibrium
+        delta0, delta1 = _equilibrium_correction(centres, fit, t_ref)
+        e0, e1 = e0 + delta0, e1 + delta1
+        valid = fit.valid
+        period = _period_estimate(centres, signs, valid, period)
+
+    half = _local_half_periods(centres, period, valid)
+    fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
+    centres = centres + np.where(fit.valid, np.clip(fit.shift, -half / 4, half / 4), 0.0)
+    half = _local_half_periods(centres, period, fit.valid)
+    gamma = _local_decay_rates(centres, fit.y, np.pi / half, fit.valid)
+    fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
+
+    noise_sigma = _pooled_noise(fit)
+    if not np.isfinite(noise_sigma):
+        noise_sigma = noise
+    sigma_y = noise_sigma * np.sqrt(fit.gain)
+    y = np.abs(fit.y)
+    reasons = np.array([""] * centres.size, dtype=object)
+    reasons[~fit.valid] = np.where(fit.edge[~fit.valid], "edge", "gap")
+
+    clipped = _clipped(fit, signs)
+    reasons[(reasons == "") & clipped] = "clipped"
+    if np.any(reasons == "clipped"):
+        n_clip = int(np.count_nonzero(reasons == "clipped"))
+        notes.append(f"{n_clip} clipped (saturated) extrema excluded")
+
+    scatter = _amplitude_scatter(y, reasons == "")
+    white = float(np.sqrt(np.median(sigma_y[reasons == ""] ** 2))) if np.any(reasons == "") \
+        else float("nan")
+    if np.isfinite(scatter) and scatter > 1.5 * white and scatter > 1e-5 * np.max(y):
+        sigma_y = np.sqrt(sigma_y**2 + scatter**2 - white**2)
+        notes.append(f"amplitudes scatter by {scatter:.3g} about a smooth envelope, "
+                     f"{scatter / white:.3g} times what the sample noise explains (correlated "
+                     "noise or disturbances): sigma includes the excess")
+    floor_level, floor_start = _noise_floor(centres, y, noise_sigma, fit, reasons == "",
+                                            threshold)
+    floor_time = float("nan")
+    if floor_start is not None:
+        in_floor = (np.arange(y.size) >= floor_start) & (reasons == "")
+        reasons[in_floor] = "noise floor"
+        floor_time = float(centres[floor_start])
+        notes.append(f"noise floor at amplitude {floor_level:.3g}: {int(in_floor.sum())} "
+                     f"turning points from t = {floor_time:.6g} excluded")
+    last_time = float(centres[-1])
+    if tf[-1] - last_time > 2 * period and np.isnan(floor_time):
+        floor_time = last_time
+        floor_level = max(floor_level, threshold)
+        notes.append(f"no turning points after t = {last_time:.6g}: the oscillation sank "
+                     f"below the noise ({threshold:.3g})")
+    used = reasons == ""
+    _check_decay(centres, y, sigma_y, used, source, floor_level)
+    n_used = int(np.count_nonzero(used))
+    if n_used < MIN_TURNING_POINTS:
+        raise RecordError(
+            f"only {n_used} usable turning points in {source} (need {MIN_TURNING_POINTS}): "
+            f"{y.size} found, {y.size - n_used} excluded ({_reason_summary(reasons)}). Use a "
+            "longer record, or check the signal column and the noise.")
+
+    period, period_sigma, drift, drift_sigma = _period_and_drift(centres, signs, y, used, period)
+    if domain == "time" and np.isfinite(drift_sigma) and abs(drift) > 3 * drift_sigma \
+            and abs(drift) > 1e-3:
+        notes.append(f"the period changes by {100 * drift:+.2g}% from the smallest to the "
+                     "largest amplitude (nonlinear stiffness or large swings)")
+    if abs(e1) * (tf[-1] - tf[0]) > 3 * noise_sigma / np.sqrt(max(y.size, 1)) and \
+            abs(e1) * (tf[-1] - tf[0]) > 1e-3 * np.max(y):
+        notes.append(f"equilibrium drifts by {e1 * (tf[-1] - tf[0]):.3g} over the record")
+    if samples_per_cycle < 8:
+        notes.append(f"only {samples_per_cycle:.3g} samples per cycle: amplitudes are less "
+                     "accurate below 8")
+    return TurningPoints(
+        t=_frozen(centres), y=_frozen(y), sigma=_frozen(sigma_y),
+        sign=_frozen(signs.astype(np.int8)), used=_frozen(used),
+        excluded_reason=tuple(str(r) for r in reasons),
+        period=period, period_sigma=period_sigma, period_drift=drift,
+        period_drift_sigma=drift_sigma,
+        equilibrium=float(e0 + e1 * (t[0] - t_ref)), equilibrium_drift=float(e1),
+        noise_sigma=float(noise_sigma), noise_floor=float(floor_level),
+        noise_floor_time=floor_time, gaps=tuple(gaps), domain=domain, notes=tuple(notes))
+
+
+def _frozen(array):
+    array = np.ascontiguousarray(array)
+    array.setflags(write=False)
+    return array
+
+
+def _reason_summary(reasons):
+    values, counts = np.unique([r for r in reasons if r], return_counts=True)
+    return ", ".join(f"{c} {v}" for v, c in zip(values, counts)) or "none"
+
+
+def _find_gaps(t, finite, tf, steps, dt):
+    """Stretches with missing samples or a time step over 2.5 median steps."""
+    gaps = []
+    long_steps = np.flatnonzero(steps > 2.5 * dt)
+    for i in long_steps[:1000]:
+        gaps.append((float(tf[i]), float(tf[i + 1])))
+    return sorted(gaps)
+
+
+def _line_fit(t, x):
+    """Least-squares straight line x = e0 + e1*(t - t_ref), computed in chunks."""
+    t_ref = float(t[0] + 0.5 * (t[-1] - t[0]))
+    n = t.size
+    st = sx = stt = stx = 0.0
+    for start in range(0, n, _BLOCK_SAMPLES):
+        tt = t[start:start + _BLOCK_SAMPLES] - t_ref
+        xx = x[start:start + _BLOCK_SAMPLES]
+        st += tt.sum()
+        sx += xx.sum()
+        stt += np.dot(tt, tt)
+        stx += np.dot(tt, xx)
+    denominator = n * stt - st * st
+    e1 = (n * stx - st * sx) / denominator if denominator > 0 else 0.0
+    e0 = (sx - e1 * st) / n
+    return float(e0), float(e1), t_ref
+
+
+def _spectrum(t, x, dt, steps):
+    """(period, noise sigma) from a Hann-windowed periodogram of the first stretch."""
+    n = min(t.size, _SPECTRUM_SAMPLES)
+    irregular = steps[: n - 1].size and (steps[: n - 1].max() > 1.05 * steps[: n - 1].min())
+    if irregular:
+        grid = t[0] + dt * np.arange(int((t[n - 1] - t[0]) / dt) + 1)
+        grid = grid[:_SPECTRUM_SAMPLES]
+        v = np.interp(grid, t[:n], x[:n])
+    else:
+        v = x[:n].astype(np.float64, copy=True)
+    m = v.size
+    index = np.arange(m, dtype=np.float64)
+    slope, intercept = np.polyfit(index, v, 1)
+    v -= intercept + slope * index
+    window = np.hanning(m)
+    v *= window
+    power = np.abs(np.fft.rfft(v)) ** 2
+    del v
+    frequencies = np.fft.rfftfreq(m, d=dt)
+    lowest = 2  # periods longer than half the stretch are drift, not oscillation
+    if power.size <= lowest + 2:
+        return float("nan"), float("nan")
+    k = lowest + int(np.argmax(power[lowest:]))
+    if 0 < k < power.size - 1:
+        a, b, c = np.log(power[k - 1:k + 2] + 1e-300)
+        denominator = a - 2 * b + c
+        offset = 0.5 * (a - c) / denominator if denominator < 0 else 0.0
+    else:
+        offset = 0.0
+    f0 = (k + offset) * frequencies[1]
+    band = power[frequencies > 2.5 * f0]
+    if band.size >= 16:
+        noise = np.sqrt(np.median(band) / (np.log(2) * np.dot(window, window)))
+    else:  # too few samples per cycle for a clean band: differences overestimate, safely
+        d = np.diff(x[:n])
+        noise = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2)
+    return (1.0 / f0 if f0 > 0 else float("nan")), float(noise)
+
+
+def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, source):
+    """Crest times and signs: half-cycles split by crossings with hysteresis."""
+    width = max(1, int(samples_per_cycle / 8))
+    if width > 1:
+        cumulative = np.concatenate([[0.0], np.cumsum(x)])
+        smooth = np.empty_like(x)
+        half = width // 2
+        lo = np.clip(np.arange(x.size) - half, 0, x.size)
+        hi = np.clip(np.arange(x.size) - half + width, 0, x.size)
+        smooth[:] = (cumulative[hi] - cumulative[lo]) / (hi - lo)
+        del cumulative, lo, hi
+    else:
+        smooth = x.copy()
+    smooth -= e0 + e1 * (t - t_ref)
+    scale = float(np.percentile(np.abs(smooth[: min(smooth.size, 1 << 22)]), 99.5))
+    threshold = 4.0 * noise / np.sqrt(width)
+    if not np.isfinite(threshold) or threshold <= 0:
+        threshold = 1e-3 * scale
+    if threshold > 0.3 * scale:
+        raise RecordError(f"no oscillation above the noise in {source}: the signal swings by "
+                          f"{scale:.3g} about its mean and the noise is {noise:.3g}. Check the "
+                          "signal column.")
+    state = np.zeros(x.size, dtype=np.int8)
+    state[smooth > threshold] = 1
+    state[smooth < -threshold] = -1
+    marked = np.flatnonzero(state)
+    if marked.size == 0:
+        raise RecordError(f"no oscillation found in {source}. Check the signal column.")
+    # Forward-fill the last definite side: each run of one side is a half-cycle.
+    filled_index = np.maximum.accumulate(np.where(state != 0, np.arange(x.size), -1))
+    side = np.where(filled_index >= 0, state[np.maximum(filled_index, 0)], 0)
+    del state, filled_index
+    changes = np.flatnonzero(np.diff(side) != 0) + 1
+    starts = np.concatenate([[marked[0]], changes[changes > marked[0]]])
+    stops = np.concatenate([starts[1:], [x.size]])
+    run_sign = side[starts].astype(np.int64)
+    del side
+    # Crest of each run: index of its largest value on its side.
+    best = np.empty(starts.size, dtype=np.int64)
+    for k in range(starts.size):
+        segment = smooth[starts[k]:stops[k]]
+        best[k] = starts[k] + (np.argmax(segment) if run_sign[k] > 0 else np.argmin(segment))
+    # A crest on the very first or last sample is a cut half-cycle: no crest inside.
+    inside = (best > 0) & (best < x.size - 1)
+    centres = t[best[inside]]
+    signs = run_sign[inside]
+    if centres.size < MIN_TURNING_POINTS:
+        raise RecordError(f"only {centres.size} turning points found in {source} (need "
+                          f"{MIN_TURNING_POINTS}). Use a record of several cycles.")
+    return centres.astype(np.float64), signs, threshold
+
+
+def _local_half_periods(centres, period, valid):
+    """Half-period at each crest from the spacing of valid neighbours, robust to misses."""
+    nominal = 0.5 * period
+    index = np.flatnonzero(valid)
+    if index.size < 2:
+        return np.full(centres.size, nominal)
+    spacing = np.diff(centres[index]) / np.maximum(np.diff(index), 1)
+    spacing = np.where((spacing > 0.6 * nominal) & (spacing < 1.4 * nominal), spacing, nominal)
+    if spacing.size >= 5:  # the spacing of noisy crests scatters: smooth it over 5 crests
+        spacing = _running_median(spacing, 5)
+    middle = 0.5 * (centres[index][1:] + centres[index][:-1])
+    if middle.size == 1:
+        return np.full(centres.size, spacing[0])
+    return np.interp(centres, middle, spacing)
+
+
+def _local_decay_rates(centres, y, omega, valid):
+    """-d ln(y)/dt at each crest from valid neighbours, smoothed; 0 where unknown."""
+    index = np.flatnonzero(valid & (y > 0))
+    if index.size < 3:
+        return np.zeros(centres.size)
+    log_y = np.log(y[index])
+    rate = -np.diff(log_y) / np.diff(centres[index])
+    if rate.size >= 7:
+        rate = _running_median(rate, 7)
+    middle = 0.5 * (centres[index][1:] + centres[index][:-1])
+    gamma = np.interp(centres, middle, rate)
+    return np.clip(gamma, -0.3 * omega, 0.3 * omega)
+
+
+class _WindowFits:
+    """Per-window results of the half-cycle fits."""
+
+    def __init__(self, k):
+        self.y = np.zeros(k)          # signed amplitude (sign * envelope at the crest)
+        self.shift = np.zeros(k)      # crest time minus window centre
+        self.gain = np.full(k, np.inf)  # var(y) / sigma**2
+        self.offset_gain = np.zeros(k)  # dy / d(equilibrium error)
+        self.rss = np.zeros(k)
+        self.count = np.zeros(k, dtype=np.int64)
+        self.valid = np.zeros(k, dtype=bool)
+        self.edge = np.zeros(k, dtype=bool)
+        self.peak = np.zeros(k)       # fitted extreme value of x (equilibrium included)
+        self.at_max = np.zeros(k, dtype=np.int64)  # samples at the record's max / min level
+        self.at_min = np.zeros(k, dtype=np.int64)
+
+
+def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
+    """Least-squares fit of exp(-g*s)*(A cos ws + B sin ws) over each half-cycle."""
+    k = centres.size
+    out = _WindowFits(k)
+    lo = np.searchsorted(t, centres - 0.5 * half, side="left")
+    hi = np.searchsorted(t, centres + 0.5 * half, side="left")
+    lo[1:] = np.maximum(lo[1:], hi[:-1])  # windows must not share samples
+    hi = np.maximum(hi, lo)
+    omega = np.pi / half
+    top = float(np.max(x))
+    bottom = float(np.min(x))
+    tolerance = 1e-9 * (top - bottom)
+    out.edge = (centres - 0.5 * half < t[0]) | (centres + 0.5 * half > t[-1])
+    first = 0
+    while first < k:
+        # Windows whose samples fit in one block.
+        cumulative = np.cumsum(hi[first:] - lo[first:])
+        last = first + max(1, int(np.searchsorted(cumulative, _BLOCK_SAMPLES, side="right")))
+        last = min(last, k)
+        sel = slice(first, last)
+        lengths = hi[sel] - lo[sel]
+        total = int(lengths.sum())
+        count = last - first
+        window = np.repeat(np.arange(count), lengths)
+        index = (np.arange(total) - np.repeat(np.cumsum(lengths) - lengths, lengths)
+                 + np.repeat(lo[sel], lengths))
+        tt = t[index]
+        xx = x[index]
+        s = tt - centres[sel][window]
+        r = xx - (e0 + e1 * (tt - t_ref))
+        ws = omega[sel][window] * s
+        envelope = np.exp(-gamma[sel][window] * s)
+        u1 = envelope * np.cos(ws)
+        u2 = envelope * np.sin(ws)
+
+        def total_of(values):
+            return np.bincount(window, weights=values, minlength=count)
+
+        s11, s12, s22 = total_of(u1 * u1), total_of(u1 * u2), total_of(u2 * u2)
+        b1, b2, s1, s2 = total_of(u1 * r), total_of(u2 * r), total_of(u1), total_of(u2)
+        rr = total_of(r * r)
+        at_max = np.bincount(window, weights=(xx >= top - tolerance), minlength=count)
+        at_min = np.bincount(window, weights=(xx <= bottom + tolerance), minlength=count)
+        # Largest step inside each window (a gap) and the span covered.
+        if total:
+            s_min = np.full(count, np.inf)
+            s_max = np.full(count, -np.inf)
+            starts = np.cumsum(lengths) - lengths
+            nonempty = lengths > 0
+            s_min[nonempty] = s[starts[nonempty]]
+            s_max[nonempty] = s[starts[nonempty] + lengths[nonempty] - 1]
+            step = np.diff(tt, prepend=tt[0])
+            step[starts[nonempty]] = 0.0
+            max_step = np.zeros(count)
+            np.maximum.at(max_step, window, step)
+        else:
+            s_min = np.full(count, np.inf)
+            s_max = np.full(count, -np.inf)
+            max_step = np.zeros(count)
+        del tt, xx, s, r, ws, envelope, u1, u2, index, window
+
+        det = s11 * s22 - s12 * s12
+        good = (lengths >= 3) & (det > 1e-12 * np.maximum(s11 * s22, 1e-300))
+        det = np.where(good, det, 1.0)
+        a = (s22 * b1 - s12 * b2) / det
+        b = (s11 * b2 - s12 * b1) / det
+        sg = signs[sel]
+        angle = np.arctan2(sg * b, sg * a)  # crest phase: cos(w*s - angle) = sign there
+        shift = angle / omega[sel]
+        decay = np.exp(-gamma[sel] * shift)
+        g1 = sg * decay * np.cos(angle)
+        g2 = sg * decay * np.sin(angle)
+        y_signed = (a * g1 + b * g2) * sg
+        gain = (g1 * g1 * s22 - 2 * g1 * g2 * s12 + g2 * g2 * s11) / det
+        c1 = (s22 * s1 - s12 * s2) / det
+        c2 = (s11 * s2 - s12 * s1) / det
+        offset_gain = g1 * c1 + g2 * c2
+        rss = np.maximum(rr - a * b1 - b * b2, 0.0)
+        span = s_max - s_min
+        hs = half[sel]
+        valid = (good & (span >= 0.4 * hs) & (s_min < 0.1 * hs) & (s_max > -0.1 * hs)
+                 & (max_step < 0.5 * hs) & (np.abs(angle) < 0.5 * np.pi))
+        out.y[sel] = y_signed * sg  # amplitude along the expected sign (< 0 if wrong)
+        out.shift[sel] = shift
+        out.gain[sel] = np.where(good, gain, np.inf)
+        out.offset_gain[sel] = np.where(good, offset_gain, 0.0)
+        out.rss[sel] = rss
+        out.count[sel] = lengths
+        out.valid[sel] = valid & (out.y[sel] > 0)
+        out.peak[sel] = (e0 + e1 * (centres[sel] + shift - t_ref)) + sg * out.y[sel]
+        out.at_max[sel] = at_max.astype(np.int64)
+        out.at_min[sel] = at_min.astype(np.int64)
+        first = last
+    out.y = np.abs(out.y)  # envelope amplitude (already positive for valid windows)
+    return out
+
+
+def _equilibrium_correction(centres, fit, t_ref):
+    """(d0, d1): equilibrium error from the alternation of the amplitude sequence."""
+    valid = fit.valid
+    y = fit.y
+    kappa = fit.offset_gain  # y_observed = y_true + kappa*(equilibrium error)
+    index = np.flatnonzero(valid[:-2] & valid[1:-1] & valid[2:]) + 1
+    if index.size < 3:
+        return 0.0, 0.0
+    coefficients = np.array([1.0, -2.0, 1.0])
+    y_window = np.stack([y[index - 1], y[index], y[index + 1]], axis=1)
+    k_window = np.stack([kappa[index - 1], kappa[index], kappa[index + 1]], axis=1)
+    tau_window = np.stack([centres[index - 1], centres[index], centres[index + 1]], axis=1) - t_ref
+    rows = y_window @ coefficients
+    f0 = k_window @ coefficients
+    f1 = (k_window * tau_window) @ coefficients
+    if index.size >= 8:
+        design = np.stack([f0, f1], axis=1)
+    else:
+        design = f0[:, None]
+    solution, *_ = np.linalg.lstsq(design, rows, rcond=None)
+    if not np.all(np.isfinite(solution)):
+        return 0.0, 0.0
+    # y_obs = y_true + kappa*(e_true - e_used): the correction adds the error to e.
+    d0 = float(solution[0])
+    d1 = float(solution[1]) if solution.size > 1 else 0.0
+    return d0, d1
+
+
+def _period_estimate(centres, signs, valid, period):
+    pairs = valid[:-1] & valid[1:] & (signs[:-1] != signs[1:])
+    spacing = np.diff(centres)[pairs]
+    spacing = spacing[(spacing > 0.3 * period) & (spacing < 0.7 * period)]
+    return float(2 * np.median(spacing)) if spacing.size >= 2 else period
+
+
+def _pooled_noise(fit):
+    """Sample noise sigma from the fit residuals: median of the per-window variances."""
+    dof = fit.count - 2
+    ok = fit.valid & (dof >= 2)
+    if np.count_nonzero(ok) < 3:
+        return float("nan")
+    variance = fit.rss[ok] / dof[ok]
+    # Each window's variance is sigma**2 * chi2(dof)/dof: rescale by its median.
+    normalized = variance / (stats.chi2.median(dof[ok]) / dof[ok])
+    return float(np.sqrt(np.median(normalized)))
+
+
+def _clipped(fit, signs):
+    """Crests flattened at the record's extreme level (saturation)."""
+    clipped = np.zeros(signs.size, dtype=bool)
+    for count in (np.where(signs > 0, fit.at_max, 0), np.where(signs < 0, fit.at_min, 0)):
+        hits = count >= 2
+        if np.count_nonzero(hits) >= 2 or np.any(count >= 3):
+            clipped |= hits
+    return clipped
+
+
+def _running_median(values, width):
+    if values.size < width or width < 3:
+        return values.copy()
+    half = width // 2
+    padded = np.pad(values, half, mode="edge")
+    return np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+
+
+def _amplitude_scatter(y, candidate):
+    """Robust scatter of amplitudes about a smooth envelope, from third differences.
+
+    Third differences cancel the envelope's curvature (var = 20*sigma**2 for independent
+    errors); an alternating offset error shows up in them too, as it should.
+    """
+    index = np.flatnonzero(candidate)
+    if index.size < 8:
+        return float("nan")
+    d3 = np.diff(y[index], 3)
+    return float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / np.sqrt(20.0))
+
+
+def _noise_floor(centres, y, noise_sigma, fit, candidate, threshold):
+    """(floor level, index of the first turning point in the floor or None).
+
+    Two signs of a floor: amplitudes comparable to the crest-detection threshold or to what
+    noise alone gives a half-cycle fit (``sqrt(trace of the covariance)``); and an envelope
+    that stops decaying at the end of the record, well below its start (a floor of
+    vibration, hum or quantization): the tail within FLOOR_FACTOR of its final level decays
+    at less than 0.3 times the rate just before it.
+    """
+    index = np.flatnonzero(candidate)
+    if index.size < 2 * MIN_TURNING_POINTS:
+        return 0.0, None
+    values = y[index]
+    times = centres[index]
+    smooth = _running_median(values, max(5, (index.size // 30) | 1))
+    white = noise_sigma * np.sqrt(2.0 * np.median(fit.gain[index]))
+    # Crests near the detection threshold were found because noise pushed them over it.
+    level = max(white, threshold)
+    m = max(5, index.size // 8)
+    final = float(np.median(smooth[-m:]))
+    above = np.flatnonzero(smooth >= FLOOR_FACTOR * final)
+    if index.size >= 3 * m and above.size and final < 0.25 * np.max(smooth):
+        start = above[-1] + 1
+        length = index.size - start
+        if length >= 5 and start >= 5:
+            before = slice(max(0, start - max(length, m)), start)
+            rate_in = np.polyfit(times[start:], np.log(values[start:]), 1)[0]
+            rate_before = np.polyfit(times[before], np.log(values[before]), 1)[0]
+            if rate_before < 0 and rate_in > 0.3 * rate_before:
+                level = max(level, final)
+    above = np.flatnonzero(smooth >= FLOOR_FACTOR * level)
+    if above.size == 0:
+        return level, int(index[0])
+    cut = above[-1] + 1
+    if cut >= index.size:
+        return (level if level > max(white, threshold) else 0.0), None
+    return level, int(index[cut])
+
+
+def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
+    """Raise for a growing oscillation or beating (the envelope rises again)."""
+    index = np.flatnonzero(used)
+    if index.size < MIN_TURNING_POINTS:
+        return
+    values = y[index]
+    smooth = _running_median(values, 5 if index.size >= 10 else 3)
+    noise = np.median(sigma_y[index])
+    start = np.median(smooth[: max(2, index.size // 10)])
+    end = np.median(smooth[-max(2, index.size // 10):])
+    if end > 1.3 * start and end - start > 5 * noise:
+        raise RecordError(
+            f"the oscillation in {source} grows (amplitude {start:.3g} at t = "
+            f"{centres[index[0]]:.4g} to {end:.3g} at t = {centres[index[-1]]:.4g}): this is "
+            "not a free decay. Check the record, or cut it to the decaying part.")
+    running_min = np.minimum.accumulate(smooth)
+    rise = smooth - running_min
+    k = int(np.argmax(rise / np.maximum(running_min, 1e-300)))
+    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * noise
+            and running_min[k] < smooth[0] and smooth[k] > 3 * floor):
+        dip = int(np.argmin(smooth[:k + 1]))
+        raise RecordError(
+            f"the amplitude in {source} falls to {running_min[k]:.3g} at t = "
+            f"{centres[index[dip]]:.4g} and rises again to {smooth[k]:.3g} at t = "
+            f"{centres[index[k]]:.4g}: beating of two modes, or a disturbance. Excite one mode "
+            "only, or cut the record before the rise.")
+
+
+def _period_and_drift(centres, signs, y, used, period):
+    """Period from crest spacing and its relative change with amplitude."""
+    pairs = used[:-1] & used[1:] & (signs[:-1] != signs[1:])
+    spacing = np.diff(centres)
+    ok = pairs & (spacing > 0.3 * period) & (spacing < 0.7 * period)
+    halves = spacing[ok]
+    if halves.size < 2:
+        return period, float("nan"), float("nan"), float("nan")
+    result = 2 * float(np.mean(halves))
+    result_sigma = 2 * float(np.std(halves, ddof=1) / np.sqrt(halves.size))
+    # Full periods from same-sign neighbours cancel the max/min crest-time asymmetry.
+    triple = used[:-2] & used[1:-1] & used[2:] & ok[:-1] & ok[1:]
+    if np.count_nonzero(triple) < 4:
+        return result, result_sigma, float("nan"), float("nan")
+    middle = np.flatnonzero(triple) + 1
+    full = centres[middle + 1] - centres[middle - 1]
+    amplitude = y[middle]
+    spread = np.ptp(amplitude)
+    if spread <= 0:
+        return result, result_sigma, float("nan"), float("nan")
+    fit, covariance = np.polyfit(amplitude, full, 1, cov="unscaled")
+    residual = full - np.polyval(fit, amplitude)
+    dof = max(full.size - 2, 1)
+    s2 = float(np.dot(residual, residual) / dof)
+    slope_sigma = float(np.sqrt(covariance[0, 0] * s2))
+    drift = float(fit[0] * spread / result)
+    drift_sigma = float(slope_sigma * spread / result)
+    return result, result_sigma, drift, drift_sigma
+
+
+# --------------------------------------------------------------------------- tables
+
+
+def turning_points_from_table(t, values, *, domain="time", source="record"):
+    """Turning points given directly: amplitudes (or signed extrema) against time or cycle n.
+
+    Parameters
+    ----------
+    t : ndarray, shape (k,)
+        Times or cycle numbers, distinct (sorted here).
+    values : ndarray, shape (k,)
+        Amplitudes (all >= 0 or all <= 0) or signed extrema about an equilibrium, which is
+        then estimated from the alternation of maxima and minima.
+    domain : {"time", "cycle"}
+    source : str
+
+    Returns
+    -------
+    TurningPoints
+        ``sigma`` is one scatter estimate for all points (from second differences);
+        ``period`` is 1 in the cycle domain, twice the median spacing for signed extrema, and
+        NaN for unsigned amplitudes in time (one or two per period cannot be told apart).
+    """
+    t = np.asarray(t, dtype=np.float64)
+    values = np.asarray(values, dtype=np.float64)
+    if t.ndim != 1 or t.shape != values.shape:
+        raise ValueError("t and values must be 1-D arrays of the same length")
+    finite = np.isfinite(t) & np.isfinite(values)
+    t, values = t[finite], values[finite]
+    if t.size < MIN_TURNING_POINTS:
+        raise RecordError(f"only {t.size} turning points in {source} (need "
+                          f"{MIN_TURNING_POINTS}). Use a longer table.")
+    order = np.argsort(t, kind="stable")
+    t, values = t[order], values[order]
+    if np.any(np.diff(t) == 0):
+        raise RecordError(f"the turning-point table {source} repeats a time. Remove the "
+                          "duplicate rows.")
+    notes = []
+    equilibrium = 0.0
+    if np.all(values >= 0) or np.all(values <= 0):
+        signs = np.zeros(values.size, dtype=np.int8)
+        y = np.abs(values)
+        if np.all(values <= 0):
+            notes.append("negative amplitudes taken as magnitudes")
+    else:
+        equilibrium = _table_equilibrium(values)
+        signs = np.where(values >= equilibrium, 1, -1).astype(np.int8)
+        y = np.abs(values - equilibrium)
+        notes.append(f"signed extrema: amplitudes taken about the equilibrium {equilibrium:.4g}")
+    d2 = np.diff(y, 2)
+    scatter = float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / np.sqrt(6.0)) \
+        if d2.size >= 3 else float("nan")
+    sigma = np.full(y.size, scatter)
+    used = y > 0
+    reasons = tuple("" if u else "zero amplitude" for u in used)
+    _check_decay(t, y, np.where(np.isfinite(sigma), sigma, 0.0), used, source)
+    if np.count_nonzero(used) < MIN_TURNING_POINTS:
+        raise RecordError(f"only {np.count_nonzero(used)} non-zero amplitudes in {source} "
+                          f"(need {MIN_TURNING_POINTS}). Use a longer table.")
+    spacing = float(np.median(np.diff(t)))
+    if domain == "cycle":
+        period = 1.0
+    elif np.any(signs != 0):
+        period = 2 * spacing
+    else:
+        period = float("nan")
+        notes.append(f"turning points are {spacing:.4g} apart; whether that is a period or a "
+                     "half-period is unknown, so no period is given")
+    return TurningPoints(
+        t=_frozen(t), y=_frozen(y), sigma=_frozen(sigma), sign=_frozen(signs),
+        used=_frozen(used), excluded_reason=reasons, period=period,
+        equilibrium=float(equilibrium), equilibrium_drift=0.0, domain=domain,
+        notes=tuple(notes))
+
+
+def _table_equilibrium(values):
+    """Level about which maxima and minima give one smooth amplitude sequence.
+
+    An error in the level raises one kind of extremum and lowers the other, which shows in
+    the second differences of the amplitude sequence; choose the level that removes it.
+    """
+    level = float(np.median(values))
+    for _ in range(5):
+        signs = np.where(values >= level, 1.0, -1.0)
+        rows = np.diff(signs * (values - level), 2)
+        feature = -np.diff(signs, 2)  # d(amplitude)/d(level) is -sign
+        denominator = np.dot(feature, feature)
+        if denominator == 0:
+            break
+        level -= float(np.dot(feature, rows) / denominator)
+    return level

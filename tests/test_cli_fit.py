@@ -1,0 +1,198 @@
+"""The fit command: formats, batches with bad files, exit codes, -o safety, plots."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mcfit import decay
+from mcfit.cli import cli
+from mcfit.report import CSV_COLUMNS
+
+SAMPLE_DATA = Path(__file__).parents[1] / "sample_data"
+
+
+@pytest.fixture
+def runner():
+    return CliRunner()
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(7)
+
+
+def _write_record(path, rng, a=0.1, b=0.1, c=0.01, y0=4.0, period=0.5, duration=20.0):
+    t = np.arange(0.0, duration, 1 / 100)
+    x = decay.amplitude(t, y0, a, b, c) * np.cos(2 * np.pi * t / period)
+    x = x + rng.normal(0.0, 0.005, t.size)
+    path.write_text("t,x\n" + "\n".join(f"{ti:.4f},{xi:.6f}" for ti, xi in zip(t, x)) + "\n")
+    return path
+
+
+def test_text_report_for_one_record(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    result = runner.invoke(cli, [str(record)])
+    assert result.exit_code == 0, result.output
+    assert "regimes present: fluid, hysteretic, coulomb" in result.output
+    assert "Q:" in result.output and "period:" in result.output
+
+
+def test_fit_word_is_optional(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    with_word = runner.invoke(cli, ["fit", str(record), "--format", "json"])
+    without = runner.invoke(cli, [str(record), "--format", "json"])
+    options_first = runner.invoke(cli, ["--format", "json", str(record)])
+    assert with_word.exit_code == without.exit_code == options_first.exit_code == 0
+    assert json.loads(with_word.output) == json.loads(without.output) == json.loads(
+        options_first.output)
+
+
+def test_json_contract_for_one_record(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    result = runner.invoke(cli, [str(record), "--format", "json"])
+    assert result.exit_code == 0
+    data = json.loads(result.output)
+    for key in ("source", "status", "error", "domain", "turning_points", "period", "model",
+                "regimes", "params", "q", "fit", "candidates", "warnings"):
+        assert key in data
+    assert data["status"] == "ok" and data["error"] is None and data["domain"] == "time"
+    assert data["model"] == "abc"
+    assert data["regimes"] == {"fluid": True, "hysteretic": True, "coulomb": True}
+    assert set(data["params"]) == {"y0", "a", "b", "c"}
+    assert abs(data["params"]["a"]["value"] - 0.1) < 5 * data["params"]["a"]["stderr"]
+    assert set(data["q"]) == {"initial", "final", "min", "max"}
+    assert {"criterion", "rms", "reduced_chi_square"} <= set(data["fit"])
+    assert len(data["candidates"]) == 7
+
+
+def test_absent_regime_has_zero_value_and_null_stderr(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "soup.csv", rng, a=0.22, b=0.0, c=0.0, y0=1.0)
+    data = json.loads(runner.invoke(cli, [str(record), "--format", "json"]).output)
+    assert data["model"] == "a"
+    assert data["params"]["b"] == {"value": 0.0, "stderr": None}
+    assert data["params"]["c"] == {"value": 0.0, "stderr": None}
+
+
+def test_batch_with_a_bad_file_keeps_going_and_exits_1(runner, tmp_path, rng):
+    good1 = _write_record(tmp_path / "a.csv", rng)
+    bad = tmp_path / "b.csv"
+    bad.write_text("t,x\n")
+    good2 = _write_record(tmp_path / "c.csv", rng, a=0.22, b=0.0, c=0.0, y0=1.0)
+    result = runner.invoke(cli, [str(good1), str(bad), str(good2), "--format", "json"])
+    assert result.exit_code == 1
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [Path(d["source"]).name for d in lines] == ["a.csv", "b.csv", "c.csv"]
+    assert [d["status"] for d in lines] == ["ok", "error", "ok"]
+    assert "b.csv" in lines[1]["error"]
+    assert result.stderr.count("Error:") == 1 and "Traceback" not in result.output
+
+
+def test_csv_output_has_the_contract_columns_once(runner, tmp_path, rng):
+    files = [str(_write_record(tmp_path / f"r{i}.csv", rng)) for i in range(2)]
+    result = runner.invoke(cli, [*files, "--format", "csv"])
+    assert result.exit_code == 0
+    rows = list(csv.reader(io.StringIO(result.stdout)))
+    assert tuple(rows[0]) == CSV_COLUMNS
+    assert len(rows) == 3 and rows[1][1] == "ok" and rows[1][2] == "abc"
+
+
+def test_directory_input_and_jobs_keep_input_order(runner, tmp_path, rng):
+    for name in ("b.csv", "a.csv", "c.csv"):
+        _write_record(tmp_path / name, rng)
+    result = runner.invoke(cli, [str(tmp_path), "--format", "json", "--jobs", "2"])
+    assert result.exit_code == 0, result.output
+    names = [Path(json.loads(line)["source"]).name for line in result.stdout.splitlines()]
+    assert names == ["a.csv", "b.csv", "c.csv"]
+
+
+def test_output_file_is_written_and_an_input_is_never_overwritten(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    before = record.read_bytes()
+    refused = runner.invoke(cli, [str(record), "-o", str(record)])
+    assert refused.exit_code == 2
+    assert "is one of the input records" in refused.stderr
+    assert record.read_bytes() == before
+    out = tmp_path / "results.csv"
+    written = runner.invoke(cli, [str(record), "--format", "csv", "-o", str(out)])
+    assert written.exit_code == 0
+    assert out.read_text().startswith(",".join(CSV_COLUMNS))
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_output_to_an_unwritable_place_is_one_error_line(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    result = runner.invoke(cli, [str(record), "-o", str(tmp_path / "missing" / "out.json")])
+    assert result.exit_code == 1
+    assert result.stderr.startswith("Error: cannot write") and result.stderr.count("\n") == 1
+
+
+def test_plot_file_and_plot_dir(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    plot = tmp_path / "run.png"
+    result = runner.invoke(cli, [str(record), "--plot", str(plot)])
+    assert result.exit_code == 0 and plot.stat().st_size > 10_000
+    assert plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    second = _write_record(tmp_path / "other.csv", rng)
+    plots = tmp_path / "plots"
+    result = runner.invoke(cli, [str(record), str(second), "--plot-dir", str(plots)])
+    assert result.exit_code == 0
+    assert sorted(p.name for p in plots.iterdir()) == ["other.png", "run.png"]
+    refused = runner.invoke(cli, [str(record), str(second), "--plot", str(plot)])
+    assert refused.exit_code == 2 and "--plot-dir" in refused.stderr
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--model", "xyz"], "not a set of regimes"),
+    (["--plot", "out.gif"], "must end in .png, .pdf or .svg"),
+])
+def test_usage_errors_exit_2(runner, tmp_path, rng, arguments, message):
+    record = _write_record(tmp_path / "run.csv", rng)
+    result = runner.invoke(cli, [str(record), *arguments])
+    assert result.exit_code == 2
+    assert message in result.stderr
+
+
+def test_missing_file_is_one_clear_line(runner, tmp_path):
+    result = runner.invoke(cli, [str(tmp_path / "nope.csv")])
+    assert result.exit_code == 1
+    assert result.stderr.count("\n") == 1 and "nope.csv" in result.stderr
+    assert "Traceback" not in result.output
+
+
+def test_stdin_record(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    result = runner.invoke(cli, ["-", "--format", "json"], input=record.read_text())
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["model"] == "abc"
+
+
+@pytest.mark.parametrize("name, model", [
+    ("fig20_19_all_three.csv", "abc"), ("fig20_21_soup_can.csv", "a"),
+    ("fig20_21_soup_can.xlsx", "a"), ("coulomb_stop.csv", "bc"),
+    ("fig20_20_peak_speed_cycles.csv", "ab"),
+])
+def test_sample_data_verdicts(runner, name, model):
+    result = runner.invoke(cli, [str(SAMPLE_DATA / name), "--format", "json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["model"] == model
+
+
+def test_help_does_not_import_the_numerical_stack():
+    code = ("import sys; from mcfit.cli import main\n"
+            "try:\n    main(['fit', '--help'])\nexcept SystemExit:\n    pass\n"
+            "print(sorted(m for m in ('numpy', 'scipy', 'pandas', 'lmfit', 'matplotlib') "
+            "if m in sys.modules))")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    assert result.stdout.strip().splitlines()[-1] == "[]"
+    assert "Exit codes" in result.stdout

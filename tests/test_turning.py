@@ -1,0 +1,245 @@
+"""Turning points of synthetic decays (closed-form envelope plus offset, drift and noise)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mcfit.decay import amplitude
+from mcfit.errors import RecordError
+from mcfit.turning import find_turning_points, turning_points_from_table
+
+REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+# y0, a, b, c: all three regimes present, Q of order 50 to 200.
+LAW = (1.0, 0.02, 0.01, 0.002)
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(20240611)
+
+
+def waveform(samples_per_cycle, cycles=40, period=1.0, noise=0.0, offset=0.3, drift=0.002,
+             phase=0.4, law=LAW, rng=None):
+    t = np.arange(int(samples_per_cycle * cycles)) * period / samples_per_cycle
+    x = amplitude(t, *law) * np.cos(2 * np.pi * t / period + phase) + offset + drift * t
+    if noise:
+        x = x + rng.normal(0.0, noise, t.size)
+    return t, x
+
+
+@pytest.mark.parametrize("samples_per_cycle", [8, 20, 200])
+def test_noise_free_amplitudes_within_1e_4(samples_per_cycle):
+    t, x = waveform(samples_per_cycle)
+    points = find_turning_points(t, x)
+    used = points.used
+    assert points.count >= 75
+    relative = points.y[used] / amplitude(points.t[used], *LAW) - 1
+    assert np.max(np.abs(relative)) < 1e-4
+    assert points.period == pytest.approx(1.0, rel=1e-5)
+    assert points.equilibrium == pytest.approx(0.3, abs=1e-4)
+    assert points.equilibrium_drift == pytest.approx(0.002, rel=1e-3)
+    # Maxima and minima alternate.
+    assert np.all(points.sign[1:] != points.sign[:-1])
+
+
+@pytest.mark.parametrize("samples_per_cycle", [20, 200])
+def test_noise_scatter_reaches_the_half_cycle_bound(samples_per_cycle, rng):
+    sigma_x = 0.01
+    errors, predicted = [], []
+    for _ in range(8):
+        t, x = waveform(samples_per_cycle, noise=sigma_x, rng=rng)
+        points = find_turning_points(t, x)
+        used = points.used
+        errors.append(points.y[used] - amplitude(points.t[used], *LAW))
+        predicted.append(points.sigma[used])
+        assert points.noise_sigma == pytest.approx(sigma_x, rel=0.1)
+    errors = np.concatenate(errors)
+    bound = np.sqrt(2 * sigma_x**2 / (samples_per_cycle / 2))  # THEORY.md section 7
+    assert np.std(errors) < 1.15 * bound
+    assert abs(np.mean(errors)) < 4 * bound / np.sqrt(errors.size)
+    assert np.mean(np.concatenate(predicted)) == pytest.approx(bound, rel=0.15)
+
+
+def test_noise_does_not_create_false_extrema(rng):
+    t, x = waveform(100, noise=0.03, rng=rng)
+    points = find_turning_points(t, x)
+    assert np.all(np.diff(points.t) > 0.4)
+    assert np.all(points.sign[1:] != points.sign[:-1])
+
+
+def test_noise_floor_tail_is_reported(rng):
+    law = (1.0, 0.0, 0.1, 0.0)
+    t, x = waveform(50, cycles=80, noise=0.01, law=law, rng=rng)
+    points = find_turning_points(t, x)
+    assert 30 < points.noise_floor_time < 60
+    assert points.noise_floor > 0
+    assert any("noise" in note for note in points.notes)
+    used = points.used
+    error = points.y[used] - amplitude(points.t[used], *law)
+    assert np.all(np.abs(error) < 5 * points.sigma[used])
+
+
+def test_noise_floor_points_are_excluded(rng):
+    # A sustained small vibration the decay sinks into: the envelope flattens.
+    law = (1.0, 0.0, 0.12, 0.0)
+    t = np.arange(0, 60, 0.02)
+    x = (amplitude(t, *law) * np.cos(2 * np.pi * t)
+         + 0.01 * np.cos(2 * np.pi * 1.37 * t) + rng.normal(0, 1e-3, t.size))
+    points = find_turning_points(t, x)
+    assert "noise floor" in points.excluded_reason
+    assert 15 < points.noise_floor_time < 45
+    assert not points.used[-1]
+
+
+def test_clipped_extrema_are_excluded(rng):
+    t, x = waveform(40, cycles=30, noise=0.001, drift=0.0, rng=rng)
+    x = np.minimum(x, 0.3 + 0.8)
+    points = find_turning_points(t, x)
+    clipped = np.array([r == "clipped" for r in points.excluded_reason])
+    assert clipped.sum() >= 3
+    assert np.all(points.sign[clipped] == 1)
+    assert any("clipped" in note for note in points.notes)
+    used = points.used
+    assert np.max(np.abs(points.y[used] / amplitude(points.t[used], *LAW) - 1)) < 0.01
+
+
+def test_uneven_sampling_and_gaps(rng):
+    t = np.sort(rng.uniform(0, 40, 1200))
+    x = amplitude(t, *LAW) * np.cos(2 * np.pi * t + 0.3) + 0.1
+    x[300:340] = np.nan
+    points = find_turning_points(t, x)
+    assert points.gaps
+    assert any("gap" in note for note in points.notes)
+    used = points.used
+    assert np.max(np.abs(points.y[used] / amplitude(points.t[used], *LAW) - 1)) < 1e-3
+
+
+def test_period_drift_with_amplitude():
+    # Period grows with amplitude, as for a pendulum: T = 1 + 0.05*y**2.
+    t = np.linspace(0, 60, 12001)
+    y = np.exp(-0.03 * t)
+    phase = np.cumsum(2 * np.pi / (1 + 0.05 * y**2)) * (t[1] - t[0])
+    points = find_turning_points(t, y * np.cos(phase))
+    assert points.period_drift > 3 * points.period_drift_sigma
+    expected = 0.05 * (np.max(points.y) ** 2 - np.min(points.y[points.used]) ** 2)
+    assert points.period_drift == pytest.approx(expected, rel=0.3)
+    assert any("period changes" in note for note in points.notes)
+
+
+def test_beating_is_an_error():
+    t = np.arange(0, 60, 0.05)
+    x = np.cos(2 * np.pi * t) + 0.8 * np.cos(2 * np.pi * 1.1 * t)
+    with pytest.raises(RecordError, match="beating"):
+        find_turning_points(t, x, source="beat.csv")
+
+
+def test_growth_is_an_error():
+    t = np.arange(0, 60, 0.05)
+    with pytest.raises(RecordError, match="grows.*not a free decay"):
+        find_turning_points(t, np.exp(0.05 * t) * np.cos(2 * np.pi * t))
+
+
+def test_too_few_turning_points_is_an_error():
+    t = np.arange(0, 1.6, 0.02)
+    with pytest.raises(RecordError, match="need 4"):
+        find_turning_points(t, np.cos(2 * np.pi * t + 0.5), source="short.csv")
+
+
+@pytest.mark.parametrize("x, message", [
+    (np.ones(100), "constant"),
+    (np.full(100, np.nan), "all NaN"),
+])
+def test_bad_signals(x, message):
+    with pytest.raises(RecordError, match=message):
+        find_turning_points(np.arange(100.0), x)
+
+
+def test_time_not_increasing():
+    t = np.arange(100.0)
+    t[50] = t[49]
+    with pytest.raises(RecordError, match="does not increase"):
+        find_turning_points(t, np.cos(t))
+
+
+def test_result_is_plain_data():
+    import json
+    t, x = waveform(20)
+    data = find_turning_points(t, x).to_dict()
+    json.dumps(data)
+    assert set(data) >= {"t", "y", "sigma", "sign", "used", "excluded_reason", "period",
+                         "period_drift", "equilibrium", "noise_sigma", "notes"}
+
+
+def test_table_of_signed_extrema_about_an_offset():
+    n = np.arange(20)
+    y = amplitude(n * 0.5, 1.0, 0.0, 0.05, 0.0)
+    values = np.where(n % 2 == 0, 1.0, -1.0) * y + 0.07
+    order = np.argsort(n % 2, kind="stable")  # maxima first, then minima, as in a file
+    points = turning_points_from_table(n[order] * 0.5, values[order])
+    assert np.all(np.diff(points.t) > 0)
+    assert points.equilibrium == pytest.approx(0.07, abs=1e-3)
+    np.testing.assert_allclose(points.y, y, atol=2e-3)
+    assert points.period == pytest.approx(1.0)
+
+
+def test_table_of_amplitudes_against_cycle_number():
+    n = np.arange(1, 41, dtype=float)
+    y = amplitude(n, 7.69, 0.036, 0.025, 0.0)
+    points = turning_points_from_table(n, y, domain="cycle")
+    np.testing.assert_array_equal(points.y, y)
+    assert points.period == 1.0
+    assert points.count == 40
+
+
+def test_core_imports_no_pandas():
+    import subprocess
+    code = ("import sys, mcfit.turning; "
+            "print(any(m in sys.modules for m in ('pandas', 'matplotlib', 'click')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
+
+
+@needs_realdata
+def test_real_pendulum_turning_points():
+    from mcfit.records import read_record
+    from mcfit.turning import turning_points_of
+    points = turning_points_of(read_record(REALDATA / "pendulum_cup" / "lab1_data.txt"))
+    assert points.count > 130
+    assert points.period == pytest.approx(1.64, rel=0.01)
+    used = points.y[points.used]
+    assert used[0] == pytest.approx(0.67, rel=0.05)
+    assert used[-1] == pytest.approx(0.19, rel=0.1)
+
+
+@needs_realdata
+def test_real_large_swing_period_depends_on_amplitude():
+    from mcfit.records import read_record
+    from mcfit.turning import turning_points_of
+    points = turning_points_of(read_record(REALDATA / "pendulum_cup" / "trial1_rawdata.txt"))
+    assert points.count >= 17
+    assert points.period_drift > 3 * points.period_drift_sigma
+    table = turning_points_of(read_record(REALDATA / "pendulum_cup" / "trial1_extrema.txt"))
+    assert table.count == 19
+    # The author's single-sample extrema and ours agree to a few percent.
+    ours = np.interp(table.t, points.t, points.y)
+    inside = (table.t > points.t[0]) & (table.t < points.t[-1])
+    np.testing.assert_allclose(ours[inside], table.y[inside], rtol=0.03)
+
+
+@needs_realdata
+@pytest.mark.parametrize("run", [1, 2])
+def test_real_spring_mass(run):
+    from mcfit.records import read_record
+    from mcfit.turning import turning_points_of
+    name = f"molla_durissima_discopieno_14.91945_0.2016_{run}.csv"
+    points = turning_points_of(read_record(REALDATA / "spring_mass_disk" / name))
+    assert points.count > 300
+    assert points.period == pytest.approx(0.7435, rel=0.01)
+    assert points.equilibrium == pytest.approx(0.417, abs=0.002)
