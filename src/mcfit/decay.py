@@ -18,11 +18,14 @@ E = exp(-2*s*t) so that exponential tails keep their relative accuracy.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 __all__ = [
     "amplitude",
     "amplitude_jacobian",
+    "amplitude_and_jacobian",
     "stop_time",
     "decay_rate",
     "quality_factor",
@@ -58,8 +61,9 @@ def _phi(u):
     phi = np.empty_like(u)
     dphi = np.empty_like(u)
     small = np.abs(u) < _SERIES_LIMIT
-    phi[small] = np.polynomial.polynomial.polyval(u[small], _PHI_SERIES)
-    dphi[small] = np.polynomial.polynomial.polyval(u[small], _PHI_DERIVATIVE_SERIES)
+    if np.any(small):
+        phi[small] = np.polynomial.polynomial.polyval(u[small], _PHI_SERIES)
+        dphi[small] = np.polynomial.polynomial.polyval(u[small], _PHI_DERIVATIVE_SERIES)
 
     positive = (~small) & (u > 0)
     z = np.sqrt(u[positive])
@@ -195,12 +199,23 @@ def stop_time(y0, a, b, c):
     return result[()] if result.ndim == 0 else result
 
 
+def _at(values, mask):
+    """values[mask] for per-time arrays; a size-1 parameter array as it is (it broadcasts)."""
+    return values if values.size == 1 else values[mask]
+
+
 class _LawTerms:
     """The normalized amplitude and the pieces its Jacobian reuses."""
 
     def __init__(self, t, y0, a, b, c):
         self.shape = _shape_of(t, y0, a, b, c)
-        t, y0, a, b, c = _as_flat_arrays(t, y0, a, b, c)
+        if math.prod(_shape_of(y0, a, b, c)) == 1:
+            # One parameter set (a fit's case): keep its constants as size-1 arrays that
+            # broadcast against t, so each is computed once, not once per time.
+            t = np.ravel(np.broadcast_to(np.asarray(t, dtype=float), self.shape))
+            y0, a, b, c = (np.asarray(v, dtype=float).reshape(1) for v in (y0, a, b, c))
+        else:
+            t, y0, a, b, c = _as_flat_arrays(t, y0, a, b, c)
         self.t_in, self.y0_in, self.c_in = t, y0, c
         law = self.law = _Normalized(y0, a, b, c)
         a, b, c = law.a, law.b, law.c
@@ -219,21 +234,22 @@ class _LawTerms:
         tau = np.empty_like(theta)
         dtau_dsigma = np.empty_like(theta)
         near = ~self.exponential
-        phi, dphi = _phi(sigma[near] * theta[near] ** 2)
+        phi, dphi = _phi(_at(sigma, near) * theta[near] ** 2)
         tau[near] = theta[near] * phi
         dtau_dsigma[near] = theta[near] ** 3 * dphi
         # Far in the exponential regime theta**3 * Phi'(u) = -(tanh z - z*sech(z)**2)/(2 s**3).
         far = self.exponential
         e = np.exp(-2.0 * z[far])
         tanh = (1.0 - e) / (1.0 + e)
-        tau[far] = tanh / s[far]
-        dtau_dsigma[far] = -(tanh - z[far] * 4.0 * e / (1.0 + e) ** 2) / (2.0 * s[far] ** 3)
+        s_far = _at(s, far)
+        tau[far] = tanh / s_far
+        dtau_dsigma[far] = -(tanh - z[far] * 4.0 * e / (1.0 + e) ** 2) / (2.0 * s_far**3)
 
         k = c + 0.5 * b
         m = a + 0.5 * b
         eta = (1.0 - tau * k) / (1.0 + tau * m)
         if np.any(far):
-            sf, af, bf, cf, kf, mf = (v[far] for v in (s, a, b, c, k, m))
+            sf, af, bf, cf, kf, mf = (_at(v, far) for v in (s, a, b, c, k, m))
             h = 0.5 * bf + sf
             numerator = e * (sf + kf) - cf * (1.0 + af / h)
             denominator = (sf + mf) - e * af * (1.0 + cf / h)
@@ -320,6 +336,12 @@ def amplitude_jacobian(t, y0, a, b, c):
     time-scaling identity a*dy/da + b*dy/db + c*dy/dc = -t*P(y).
     """
     return _LawTerms(t, y0, a, b, c).jacobian()
+
+
+def amplitude_and_jacobian(t, y0, a, b, c):
+    """``(amplitude(...), amplitude_jacobian(...))`` from one evaluation of the law."""
+    terms = _LawTerms(t, y0, a, b, c)
+    return terms.amplitude(), terms.jacobian()
 
 
 def decay_rate(y, a, b, c):

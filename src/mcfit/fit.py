@@ -8,8 +8,10 @@ gives the same relative result after the same iterations. numpy/scipy/lmfit only
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
+import warnings
 from dataclasses import asdict, dataclass, field
 
 import lmfit
@@ -164,6 +166,21 @@ def _starting_values(scaled, terms):
     return start
 
 
+@contextlib.contextmanager
+def _quiet_lmfit_errorbars():
+    """Silence lmfit's square roots of a negative covariance diagonal after a fit.
+
+    lmfit sets each ``Parameter.stderr`` from its own covariance, which rounding makes
+    slightly negative when a parameter is nearly unconstrained (Q of 1e6: ``b`` barely
+    moves the amplitudes); numpy then warns "invalid value encountered in sqrt". mcfit
+    never reads those stderr values (it computes its own covariance), so only warnings
+    raised inside lmfit are ignored; one from mcfit's own residuals still shows.
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=RuntimeWarning, module=r"lmfit\.")
+        yield
+
+
 def _fit_subset(scaled, terms):
     """Least-squares fit of one model in internal units; returns (values, covar, chi2, ok)."""
     start = _starting_values(scaled, terms)
@@ -175,18 +192,27 @@ def _fit_subset(scaled, terms):
     column = {"y0": 0, "a": 1, "b": 2, "c": 3}
     t, y, w = scaled.t, scaled.y, scaled.weights
 
+    free_columns = [column[k] for k in free]
+    last = {}  # the law at the last parameters: scipy asks for the Jacobian where it just
+    # evaluated the residuals, so one evaluation serves both
+
+    def evaluate(p):
+        key = tuple(p[k].value for k in ("y0", "a", "b", "c"))
+        if last.get("key") != key:
+            last["key"] = key
+            last["value"] = decay.amplitude_and_jacobian(t, *key)
+        return last["value"]
+
     def residual(p):
-        v = p.valuesdict()
-        return (decay.amplitude(t, v["y0"], v["a"], v["b"], v["c"]) - y) * w
+        return (evaluate(p)[0] - y) * w
 
     def jacobian(p):
-        v = p.valuesdict()
-        full = decay.amplitude_jacobian(t, v["y0"], v["a"], v["b"], v["c"])
-        return full[:, [column[k] for k in free]] * w[:, None]
+        return evaluate(p)[1][:, free_columns] * w[:, None]
 
     minimizer = lmfit.Minimizer(residual, params)
-    result = minimizer.minimize(method="least_squares", jac=jacobian, x_scale="jac",
-                                **_TOLERANCES)
+    with _quiet_lmfit_errorbars():
+        result = minimizer.minimize(method="least_squares", jac=jacobian, x_scale="jac",
+                                    **_TOLERANCES)
     values = np.array([result.params[k].value for k in ("y0", "a", "b", "c")])
     chi_square = float(np.sum(residual(result.params) ** 2))
     # Unscaled covariance from the Jacobian at the solution (scaled by chi2/dof later).
@@ -456,8 +482,9 @@ def _fit_power_law(scaled, t, y, sigma, omega, domain, criterion, noise_from_res
         v = p.valuesdict()
         return decay.power_law_jacobian(ts, v["y0"], v["k"], v["n"]) * w[:, None]
 
-    result = lmfit.Minimizer(residual, params).minimize(
-        method="least_squares", jac=jacobian, x_scale="jac", **_TOLERANCES)
+    with _quiet_lmfit_errorbars():
+        result = lmfit.Minimizer(residual, params).minimize(
+            method="least_squares", jac=jacobian, x_scale="jac", **_TOLERANCES)
     v = result.params.valuesdict()
     n_exp = v["n"]
     # Back to physical units: y = A*y', t = T*t'  =>  k = k' * A**(1-n) / T.
