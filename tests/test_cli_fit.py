@@ -73,6 +73,10 @@ def test_json_contract_for_one_record(runner, tmp_path, rng):
     assert set(data["q"]) == {"initial", "final", "min", "max"}
     assert {"criterion", "rms", "reduced_chi_square"} <= set(data["fit"])
     assert len(data["candidates"]) == 7
+    # The same coefficients per cycle: a*T, b*T, c*T.
+    for k in "abc":
+        assert data["params_per_cycle"][k]["value"] == pytest.approx(
+            data["params"][k]["value"] * data["period"], rel=1e-12)
 
 
 def test_absent_regime_has_zero_value_and_null_stderr(runner, tmp_path, rng):

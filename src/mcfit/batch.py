@@ -11,7 +11,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-from mcfit.errors import McfitError, UsageError
+from mcfit.errors import InputError, McfitError, UsageError
 
 __all__ = ["FitOptions", "JobResult", "expand_inputs", "run_jobs", "plot_path_for"]
 
@@ -53,8 +53,13 @@ def expand_inputs(arguments) -> list[str]:
     files = []
     for argument in arguments:
         if argument != "-" and os.path.isdir(argument):
-            found = sorted(str(p) for p in Path(argument).iterdir()
-                           if p.is_file() and p.suffix.lower() in RECORD_EXTENSIONS)
+            try:
+                found = sorted(str(p) for p in Path(argument).iterdir()
+                               if p.is_file() and p.suffix.lower() in RECORD_EXTENSIONS)
+            except OSError as error:
+                raise InputError(f"cannot list directory {argument}: "
+                                 f"{error.strerror or error}. Check its permissions, or name "
+                                 "the files instead.") from None
             if not found:
                 raise UsageError(f"directory {argument} holds no record files "
                                  f"({', '.join(RECORD_EXTENSIONS)}); name the files instead.")
@@ -77,8 +82,33 @@ def plot_path_for(source: str, plot_dir: str, taken: set) -> str:
 
 
 def _job(argument):
-    """Read, analyse, format and plot one record; never raises for a bad file."""
+    """Read, analyse, format and plot one record; never raises, not even for a bug.
+
+    A bad file is an expected failure with its own message. Any other exception is a bug
+    in mcfit, but losing the rest of a batch to it would be worse: the record is reported
+    with status "error" and a message that says so, and the command line exits 1.
+    """
     source, options, plot_path = argument
+    try:
+        return _job_for(source, options, plot_path)
+    except MemoryError:
+        message = (f"not enough memory to fit {_display_name(source)}; fit a shorter part of "
+                   "the record, or run with --jobs 1.")
+    except Exception as error:  # noqa: BLE001 - a bug must not end the batch
+        detail = " ".join(str(error).split())
+        detail = detail if len(detail) <= 300 else detail[:297] + "..."
+        message = (f"internal error while fitting {_display_name(source)}: "
+                   f"{type(error).__name__}: {detail} (a bug in mcfit; please report it)")
+    from mcfit import report
+    from mcfit.analysis import failed_analysis
+
+    analysis = failed_analysis(_display_name(source), message)
+    return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
+                     text=report.to_text(analysis), json_line=report.to_json(analysis),
+                     csv_row=report.to_csv_row(analysis))
+
+
+def _job_for(source, options, plot_path):
     from mcfit import report
     from mcfit.analysis import analyse_record, failed_analysis
     from mcfit.records import read_record

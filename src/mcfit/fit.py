@@ -33,6 +33,9 @@ LRT_ALPHA = 0.01
 # |correlation| above this between two kept parameters: the record hardly tells them apart.
 DEGENERATE_CORRELATION = 0.98
 MIN_POINTS = 4
+# Amplitudes and times beyond these cannot be squared and multiplied in float64.
+_LARGEST = 1e30
+_SMALLEST = 1e-30
 # Stop when chi-square changes by < 1e-10 relative: 1e-5 of a standard error in the
 # parameters, and far enough above chi-square's rounding floor (~1e-15) that the same
 # record in other units stops after the same iterations.
@@ -315,6 +318,14 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
         raise FitError("turning-point times must be strictly increasing")
     if np.any(y <= 0):
         raise FitError("turning-point amplitudes must be > 0 (measured about the equilibrium)")
+    # Squares and products of the coefficients must stay inside double precision.
+    for what, values, unit in (("amplitudes", y, "the signal"),
+                               ("times", np.abs(t[[0, -1]]), "the time")):
+        largest = float(np.max(values))
+        smallest = float(np.min(y)) if what == "amplitudes" else float(t[-1] - t[0])
+        if largest > _LARGEST or smallest < _SMALLEST:
+            raise FitError(f"turning-point {what} span {smallest:.3g} to {largest:.3g}, beyond "
+                           f"what mcfit fits in double precision (1e-30 to 1e30); rescale {unit}.")
     if criterion not in CRITERIA:
         raise FitError(f"unknown criterion {criterion!r}; use one of {', '.join(CRITERIA)}")
     if domain not in ("time", "cycle"):

@@ -16,7 +16,9 @@ from __future__ import annotations
 import io
 import os
 import re
+import stat
 import sys
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -143,7 +145,11 @@ def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None
         if time_col is not None:
             raise UsageError("give either a time column or a sample rate, not both.")
     table = _open_table(source, sheet)
-    return _build_record(table, time_col, signal_col, rate, input, domain)
+    # The column heuristics (spans, slopes, steps) overflow to inf or NaN for values near
+    # the float64 limit, which then fail their tests as they should; the turning-point
+    # search rejects such values with a message.
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _build_record(table, time_col, signal_col, rate, input, domain)
 
 
 # --------------------------------------------------------------------------- opening
@@ -172,10 +178,23 @@ def _open_table(source, sheet):
         return _text_table("<stdin>", _to_bytes(sys.stdin.buffer.read()), None)
     path = Path(source)
     name = path.name
-    if not path.exists():
-        raise InputError(f"file not found: {source}. Check the path and the working directory.")
-    if path.is_dir():
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise InputError(f"file not found: {source}. Check the path and the working "
+                         "directory.") from None
+    except NotADirectoryError:
+        raise InputError(f"file not found: {source} (a part of the path is a file, not a "
+                         "directory). Check the path.") from None
+    except OSError as exc:  # a folder on the way that may not be entered, a loop...
+        raise InputError(f"cannot read {source}: {exc.strerror or exc}. Check the "
+                         "permissions of the file and of its folders.") from None
+    if stat.S_ISDIR(mode):
         raise InputError(f"{source} is a directory, not a file. Give a data file inside it.")
+    if not stat.S_ISREG(mode):
+        # Reading a FIFO or a device could block forever or never end.
+        raise InputError(f"{source} is not a regular file (a pipe, socket or device). Copy "
+                         "the record to a file, or pipe it to mcfit as - (stdin).")
     suffix = path.suffix.lower()
     if suffix in EXCEL_EXTENSIONS:
         return _excel_table(path, name, sheet)
@@ -199,12 +218,43 @@ def _to_bytes(data):
     return data.encode("utf-8") if isinstance(data, str) else bytes(data)
 
 
+def _utf16_without_bom(head):
+    """'utf-16-le' or 'utf-16-be' when every other byte is NUL (ASCII text in UTF-16)."""
+    sample = head[: 1 << 16]
+    if len(sample) < 8 or b"\x00" not in sample:
+        return None
+    pairs = len(sample) // 2
+    odd_nul = sample[1:2 * pairs:2].count(0)
+    even_nul = sample[0:2 * pairs:2].count(0)
+    if odd_nul >= 0.9 * pairs and even_nul <= 0.02 * pairs:
+        return "utf-16-le"
+    if even_nul >= 0.9 * pairs and odd_nul <= 0.02 * pairs:
+        return "utf-16-be"
+    return None
+
+
+def _binary_problem(text):
+    """A description of the binary bytes in decoded text, or None for plain text."""
+    if "\x00" in text:
+        return "NUL bytes"
+    control = sum(1 for c in text[: 1 << 16] if ord(c) < 32 and c not in "\t\n\r\f\v"
+                  or 0x7f <= ord(c) < 0xa0)
+    if control > max(2, 0.01 * min(len(text), 1 << 16)):
+        return "control bytes"
+    return None
+
+
 def _decode(head):
     """(text, encoding, note) for the sniffed bytes."""
     if head.startswith(b"\xef\xbb\xbf"):
         return head[3:].decode("utf-8", errors="ignore"), "utf-8-sig", "byte-order mark skipped"
     if head.startswith((b"\xff\xfe", b"\xfe\xff")):
         return head.decode("utf-16", errors="ignore"), "utf-16", "UTF-16 text"
+    utf16 = _utf16_without_bom(head)
+    if utf16 is not None:
+        cut = len(head) - len(head) % 2
+        return (head[:cut].decode(utf16, errors="replace"), utf16,
+                "UTF-16 text without a byte-order mark")
     try:
         return head.decode("utf-8"), "utf-8", None
     except UnicodeDecodeError as exc:
@@ -227,6 +277,11 @@ def _text_table(name, head, path):
     if not head.strip():
         raise InputError(f"{name} is empty. Give a file with a time and a signal column.")
     text, encoding, enc_note = _decode(head)
+    problem = _binary_problem(text)
+    if problem is not None:
+        raise InputError(f"{name} is not a text record: it holds binary data ({problem}). "
+                         "Give a CSV, TSV or text export of the data (an Excel workbook must "
+                         "end in .xlsx).")
     notes = [enc_note] if enc_note else []
     lines = text.splitlines()
     if path is not None and len(head) == _SNIFF_BYTES and lines:
@@ -292,12 +347,25 @@ def _text_table(name, head, path):
         return pd.read_csv(source_bytes(), **kwargs)
 
     sample_text = "\n".join(lines[data_start:data_start + 20000])
-    sample = _numeric_frame(pd.read_csv(
-        io.StringIO(sample_text), sep=r"\s+" if sep is None else sep, header=None, dtype=str,
-        comment=comment, skip_blank_lines=True, engine="c", keep_default_na=False,
-        names=range(len(names)), index_col=False, on_bad_lines="skip",
-    ), decimal)
+    try:
+        with warnings.catch_warnings():
+            # Rows longer than the sniffed width (a leading empty field) are cut here; the
+            # sample only guides the choice of columns, so pandas' warning is noise.
+            warnings.simplefilter("ignore", pd.errors.ParserWarning)
+            sample = _numeric_frame(pd.read_csv(
+                io.StringIO(sample_text), sep=r"\s+" if sep is None else sep, header=None,
+                dtype=str, comment=comment, skip_blank_lines=True, engine="c",
+                keep_default_na=False, names=range(len(names)), index_col=False,
+                on_bad_lines="skip",
+            ), decimal)
+    except (pd.errors.EmptyDataError, pd.errors.ParserError) as exc:
+        raise _parse_error(name, exc) from None
     return _Table(name, names, sample, reader, notes)
+
+
+def _parse_error(name, exc):
+    return InputError(f"cannot parse {name}: {str(exc).splitlines()[0]}. Check the quotes "
+                      "and that every row has the same separator.")
 
 
 def _skip_rows(data_start, lines, other_comment):
@@ -383,7 +451,22 @@ def _sheet_name(sheets, sheet, name):
                      "Use --sheet.")
 
 
+_CFB_SIGNATURE = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # OLE compound file
+
+
 def _excel_table(path, name, sheet):
+    try:
+        with open(path, "rb") as handle:
+            signature = handle.read(8)
+    except OSError as exc:
+        raise InputError(f"cannot read {name}: {exc.strerror or exc}. Check its "
+                         "permissions.") from None
+    if signature == _CFB_SIGNATURE:
+        # Excel saves a password-protected workbook as an OLE compound file holding the
+        # encrypted package; an old binary .xls is one too. Neither is a zip .xlsx.
+        raise InputError(f"{name} is a password-protected (encrypted) workbook or an old "
+                         ".xls renamed .xlsx, which mcfit cannot open. In Excel remove the "
+                         "password and save as .xlsx, or export CSV.")
     try:
         book = pd.ExcelFile(path, engine="openpyxl")
     except Exception as exc:  # zipfile.BadZipFile, KeyError, ValueError... from openpyxl
@@ -556,9 +639,20 @@ def _detect_kind(t, x):
 def _read_columns(table, indices):
     try:
         frame = table.reader(indices)
-    except ValueError:
+    except (pd.errors.EmptyDataError, pd.errors.ParserError) as exc:
+        # Before ValueError: both are ValueErrors, and re-reading would fail again.
+        raise _parse_error(table.name, exc) from None
+    except UnicodeDecodeError as exc:
+        # Sniffing saw only the first megabyte; a byte further on is not in its encoding.
+        raise InputError(f"cannot read {table.name}: past its first megabyte it is not "
+                         f"{exc.encoding} text ({exc.reason}). Save the file as UTF-8.") from None
+    except ValueError as exc:
         # Text in a numeric column: find it, to say where.
-        text = table.reader(indices, as_text=True)
+        try:
+            text = table.reader(indices, as_text=True)
+        except ValueError:  # not text but the shape: rows shorter than the header says
+            raise InputError(f"cannot parse {table.name}: {str(exc).splitlines()[0]}. Check "
+                             "that every row has the same number of columns.") from None
         for position, index in enumerate(indices):
             values = text.iloc[:, position].astype(str).str.strip()
             converted = pd.to_numeric(values.str.replace(",", ".", regex=False)
@@ -572,9 +666,6 @@ def _read_columns(table, indices):
                     f"{table.name} (data row {row + 1}). Fix or delete that row, or start it "
                     "with # to make it a comment.") from None
         raise
-    except (pd.errors.EmptyDataError, pd.errors.ParserError) as exc:
-        raise InputError(f"cannot parse {table.name}: {str(exc).splitlines()[0]}. Check that "
-                         "every row has the same separator.") from None
     return [frame.iloc[:, position].to_numpy(dtype=np.float64, copy=False)
             for position in range(len(indices))]
 
@@ -605,6 +696,13 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
     if table.sample.shape[0] == 0 or table.sample.notna().sum().sum() == 0:
         raise InputError(f"{name} has no numeric data rows. Give a file with a time and a "
                          "signal column of numbers.")
+    numeric_rows = int(np.count_nonzero(table.sample.notna().any(axis=1).to_numpy()))
+    if numeric_rows < 2:
+        raise InputError(f"{name} has only {numeric_rows} data row. A decay record needs "
+                         "many samples over several cycles.")
+    if len(table.names) == 1 and time_col is None and rate is None and signal_col is None:
+        raise InputError(f"{name} has one column, {_describe(table, 0)}, and no time column. "
+                         "Give the sample rate with --rate HZ, or add a time column.")
     ignored = []
     if time_col is not None:
         time_index = _resolve_column(table, time_col, "time")

@@ -39,6 +39,20 @@ def _params_in_time_units(analysis: Analysis):
     return values, stderr, "per second"
 
 
+def _params_per_cycle(analysis: Analysis):
+    """Coefficients per cycle (a*T, b*T, c*T, as in Fig. 20.20), or None without a period."""
+    fit, turning = analysis.fit, analysis.turning
+    if fit.domain == "cycle":
+        return {k: {"value": _number(fit.values[k]), "stderr": _number(fit.stderr[k])}
+                for k in TERMS}
+    period = _number(turning.period) if turning is not None else None
+    if period is None:
+        return None
+    return {k: {"value": _number(fit.values[k] * period),
+                "stderr": None if fit.stderr[k] is None else _number(fit.stderr[k] * period)}
+            for k in TERMS}
+
+
 def to_json_dict(analysis: Analysis) -> dict:
     """The machine-readable contract: keys may be added, never renamed."""
     out = {"source": analysis.source, "status": analysis.status, "error": analysis.error}
@@ -56,6 +70,7 @@ def to_json_dict(analysis: Analysis) -> dict:
         out["params"] = {k: {"value": _number(values[k]), "stderr": _number(stderr[k])}
                          for k in ("y0", "a", "b", "c")}
         out["params_units"] = units
+        out["params_per_cycle"] = _params_per_cycle(analysis)
         out["t0"] = _number(fit.t0)  # time (or cycle) of the first turning point used, where y = y0
         q = fit.q_summary or {}
         out["q"] = {k: _number(q.get(k)) for k in ("initial", "final", "min", "max")}
@@ -169,6 +184,10 @@ def to_text(analysis: Analysis) -> str:
               "a": "a (fluid)", "b": "b (hysteretic)", "c": "c (Coulomb)"}
     for k in ("y0", "a", "b", "c"):
         lines.append(f"    {labels[k]:28s} {_format(params[k]['value'], params[k]['stderr'])}")
+    per_cycle = data.get("params_per_cycle")
+    if per_cycle is not None and unit == "per second":
+        lines.append("  per cycle:       " + ", ".join(
+            f"{k}*T = {per_cycle[k]['value']:.4g}" for k in TERMS if per_cycle[k]["value"]))
     q = data["q"]
     if q and q["initial"] is not None:
         lines.append(f"  Q:               initial {q['initial']:.5g}, final {q['final']:.5g}, "

@@ -50,6 +50,8 @@ _SPECTRUM_SAMPLES = 1 << 21
 _REFINE_PASSES = 4
 # An amplitude below FLOOR_FACTOR times the floor level is dominated by the floor.
 FLOOR_FACTOR = 1.5
+# Larger times or signal values overflow float64 once squared and summed.
+_LARGEST_VALUE = 1e30
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,6 +209,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         tf, xf = t[finite], x[finite]
     else:
         tf, xf = t, x
+    _check_range(tf, xf, source)
     if tf.size < 16:
         raise RecordError(f"{source} has only {tf.size} samples. A waveform needs several "
                           "cycles of at least 8 samples each.")
@@ -231,12 +234,12 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
                           f"of {period:.3g}, under 2 samples. Check the signal column.")
     samples_per_cycle = period / dt
 
-    # Coarse equilibrium: a straight line through the data.
-    e0, e1, t_ref = _line_fit(tf, xf)
+    # Coarse equilibrium: a straight line through the data, weighted towards small swings.
+    e0, e1, t_ref = _equilibrium_line(tf, xf, period, noise)
     centres, signs, threshold = _coarse_extrema(tf, xf, e0, e1, t_ref, period, samples_per_cycle, noise,
                                      source)
 
-    gamma = np.zeros(centres.size)
+    gamma = np.zeros((2, centres.size))  # decay rate and its slope at each crest
     valid = np.ones(centres.size, dtype=bool)
     for _ in range(_REFINE_PASSES):
         half = _local_half_periods(centres, period, valid)
@@ -264,7 +267,11 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     noise_sigma = _pooled_noise(fit)
     if not np.isfinite(noise_sigma):
         noise_sigma = noise
-    sigma_y = noise_sigma * np.sqrt(fit.gain)
+    # Windows without a fit have an infinite gain: their sigma is infinite, even when the
+    # record is noise-free (0 * inf would be NaN).
+    sigma_y = np.full(fit.gain.shape, np.inf)
+    finite_gain = np.isfinite(fit.gain)
+    sigma_y[finite_gain] = noise_sigma * np.sqrt(fit.gain[finite_gain])
     y = np.abs(fit.y)
     reasons = np.array([""] * centres.size, dtype=object)
     reasons[~fit.valid] = np.where(fit.edge[~fit.valid], "edge", "gap")
@@ -329,6 +336,15 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         noise_floor_time=floor_time, gaps=tuple(gaps), domain=domain, notes=tuple(notes))
 
 
+def _check_range(t, x, source):
+    for what, values, fix in (("time", t, "give the time in other units"),
+                              ("signal", x, "rescale the signal")):
+        largest = float(np.max(np.abs(values))) if values.size else 0.0
+        if largest > _LARGEST_VALUE:
+            raise RecordError(f"the {what} of {source} reaches {largest:.3g}, beyond what mcfit "
+                              f"handles in double precision ({_LARGEST_VALUE:.0e}); {fix}.")
+
+
 def _frozen(array):
     array = np.ascontiguousarray(array)
     array.setflags(write=False)
@@ -364,6 +380,41 @@ def _line_fit(t, x):
     denominator = n * stt - st * st
     e1 = (n * stx - st * sx) / denominator if denominator > 0 else 0.0
     e0 = (sx - e1 * st) / n
+    return float(e0), float(e1), t_ref
+
+
+def _equilibrium_line(t, x, period, noise):
+    """Coarse equilibrium line (e0, e1, t_ref), each period weighted by 1/(its swing)**2.
+
+    An unweighted line through a fast decay (Q of a few) is pulled towards the first
+    half-cycle, which can leave every later, smaller swing on one side of it and hide its
+    crests. Weighting each period by its swing about the line lets the small late swings,
+    which show the equilibrium best, set it; for a slow decay the weights are nearly equal
+    and the line is the plain fit. The weight is capped at 1e12 times the largest swing's.
+    """
+    e0, e1, t_ref = _line_fit(t, x)
+    edges = np.searchsorted(t, t[0] + period * np.arange(1, int((t[-1] - t[0]) / period) + 1))
+    starts = np.unique(np.concatenate([[0], edges[edges < t.size]]))
+    if starts.size < 3:
+        return e0, e1, t_ref
+    counts = np.diff(np.append(starts, t.size))
+    tau = t - t_ref
+    sums = [np.add.reduceat(v, starts) for v in (tau, x, tau * tau, tau * x)]
+    for _ in range(3):
+        swing = np.maximum.reduceat(np.abs(x - (e0 + e1 * tau)), starts)
+        floor = 1e-6 * float(np.max(swing))
+        if np.isfinite(noise):
+            floor = max(floor, 3.0 * noise)
+        if not floor > 0:
+            break
+        weight = 1.0 / np.maximum(swing, floor) ** 2
+        sw = float(np.dot(weight, counts))
+        st, sx, stt, stx = (float(np.dot(weight, s)) for s in sums)
+        denominator = sw * stt - st * st
+        if not denominator > 0:
+            break
+        e1 = (sw * stx - st * sx) / denominator
+        e0 = (sx - e1 * st) / sw
     return float(e0), float(e1), t_ref
 
 
@@ -475,17 +526,37 @@ def _local_half_periods(centres, period, valid):
 
 
 def _local_decay_rates(centres, y, omega, valid):
-    """-d ln(y)/dt at each crest from valid neighbours, smoothed; 0 where unknown."""
+    """Rows (g, dg/dt): -d ln(y)/dt at each crest from valid neighbours, smoothed, and its
+    slope; 0 where unknown. The slope lets a window's envelope, exp(-g*s - dg/dt*s**2/2),
+    follow a decay rate that changes within the half-cycle (low Q with fluid or Coulomb
+    damping), which would otherwise bias the amplitudes."""
     index = np.flatnonzero(valid & (y > 0))
     if index.size < 3:
-        return np.zeros(centres.size)
+        return np.zeros((2, centres.size))
     log_y = np.log(y[index])
     rate = -np.diff(log_y) / np.diff(centres[index])
     if rate.size >= 7:
         rate = _running_median(rate, 7)
     middle = 0.5 * (centres[index][1:] + centres[index][:-1])
-    gamma = np.interp(centres, middle, rate)
-    return np.clip(gamma, -0.3 * omega, 0.3 * omega)
+    gamma = np.clip(_interpolate_extending_ends(centres, middle, rate), -0.3 * omega,
+                    0.3 * omega)
+    slope = np.zeros(centres.size)
+    if rate.size >= 7:
+        slope = _interpolate_extending_ends(
+            centres, middle[1:-1], (rate[2:] - rate[:-2]) / (middle[2:] - middle[:-2]))
+        slope = np.clip(_running_median(slope, 7), -0.1 * omega**2, 0.1 * omega**2)
+    return np.vstack([gamma, slope])
+
+
+def _interpolate_extending_ends(x, xp, fp):
+    """np.interp, but continued linearly past the first and last points, not held flat:
+    the first and last crests lie half an interval beyond the outermost rate midpoints."""
+    values = np.interp(x, xp, fp)
+    if xp.size >= 2:
+        before, after = x < xp[0], x > xp[-1]
+        values[before] = fp[0] + (x[before] - xp[0]) * (fp[1] - fp[0]) / (xp[1] - xp[0])
+        values[after] = fp[-1] + (x[after] - xp[-1]) * (fp[-1] - fp[-2]) / (xp[-1] - xp[-2])
+    return values
 
 
 class _WindowFits:
@@ -506,7 +577,9 @@ class _WindowFits:
 
 
 def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
-    """Least-squares fit of exp(-g*s)*(A cos ws + B sin ws) over each half-cycle."""
+    """Least-squares fit of exp(-g*s - h*s**2/2)*(A cos ws + B sin ws) over each half-cycle.
+
+    ``gamma`` holds g (row 0) and h = dg/dt (row 1) at each crest."""
     k = centres.size
     out = _WindowFits(k)
     lo = np.searchsorted(t, centres - 0.5 * half, side="left")
@@ -536,7 +609,9 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
         s = tt - centres[sel][window]
         r = xx - (e0 + e1 * (tt - t_ref))
         ws = omega[sel][window] * s
-        envelope = np.exp(-gamma[sel][window] * s)
+        rate = gamma[0][sel][window]
+        rate_slope = gamma[1][sel][window]
+        envelope = np.exp(-(rate + 0.5 * rate_slope * s) * s)
         u1 = envelope * np.cos(ws)
         u2 = envelope * np.sin(ws)
 
@@ -564,7 +639,7 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
             s_min = np.full(count, np.inf)
             s_max = np.full(count, -np.inf)
             max_step = np.zeros(count)
-        del tt, xx, s, r, ws, envelope, u1, u2, index, window
+        del tt, xx, s, r, ws, envelope, u1, u2, index, window, rate, rate_slope
 
         det = s11 * s22 - s12 * s12
         good = (lengths >= 3) & (det > 1e-12 * np.maximum(s11 * s22, 1e-300))
@@ -574,7 +649,7 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
         sg = signs[sel]
         angle = np.arctan2(sg * b, sg * a)  # crest phase: cos(w*s - angle) = sign there
         shift = angle / omega[sel]
-        decay = np.exp(-gamma[sel] * shift)
+        decay = np.exp(-(gamma[0][sel] + 0.5 * gamma[1][sel] * shift) * shift)
         g1 = sg * decay * np.cos(angle)
         g2 = sg * decay * np.sin(angle)
         y_signed = (a * g1 + b * g2) * sg
@@ -607,13 +682,22 @@ def _equilibrium_correction(centres, fit, t_ref):
     valid = fit.valid
     y = fit.y
     kappa = fit.offset_gain  # y_observed = y_true + kappa*(equilibrium error)
-    index = np.flatnonzero(valid[:-2] & valid[1:-1] & valid[2:]) + 1
+    # Sixth differences: they remove the decay's smooth trend up to fifth order (second
+    # differences leave its curvature, which biases the offset when Q is low) while the
+    # alternation, at the sequence's Nyquist frequency, gains 64 against white noise's
+    # sqrt(924), more than second differences' 4 against sqrt(6).
+    coefficients = np.array([1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0])
+    width = coefficients.size
+    if valid.size < width:
+        return 0.0, 0.0
+    window_valid = np.all(np.lib.stride_tricks.sliding_window_view(valid, width), axis=1)
+    index = np.flatnonzero(window_valid)  # first point of each full window
     if index.size < 3:
         return 0.0, 0.0
-    coefficients = np.array([1.0, -2.0, 1.0])
-    y_window = np.stack([y[index - 1], y[index], y[index + 1]], axis=1)
-    k_window = np.stack([kappa[index - 1], kappa[index], kappa[index + 1]], axis=1)
-    tau_window = np.stack([centres[index - 1], centres[index], centres[index + 1]], axis=1) - t_ref
+    offsets = np.arange(width)
+    y_window = y[index[:, None] + offsets]
+    k_window = kappa[index[:, None] + offsets]
+    tau_window = centres[index[:, None] + offsets] - t_ref
     rows = y_window @ coefficients
     f0 = k_window @ coefficients
     f1 = (k_window * tau_window) @ coefficients
@@ -737,7 +821,9 @@ def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
     running_min = np.minimum.accumulate(smooth)
     rise = smooth - running_min
     k = int(np.argmax(rise / np.maximum(running_min, 1e-300)))
-    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * noise
+    # Near the ends the median is the crest itself, often an edge-cut window: judge the
+    # rise against that crest's own uncertainty when it is the larger.
+    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * max(noise, sigma_y[index[k]])
             and running_min[k] < smooth[0] and smooth[k] > 3 * floor):
         dip = int(np.argmin(smooth[:k + 1]))
         raise RecordError(
@@ -767,11 +853,15 @@ def _period_and_drift(centres, signs, y, used, period):
     spread = np.ptp(amplitude)
     if spread <= 0:
         return result, result_sigma, float("nan"), float("nan")
-    fit, covariance = np.polyfit(amplitude, full, 1, cov="unscaled")
-    residual = full - np.polyval(fit, amplitude)
+    centred = amplitude - np.mean(amplitude)  # better conditioned; the slope is the same
+    fit, covariance = np.polyfit(centred, full, 1, cov="unscaled")
+    residual = full - np.polyval(fit, centred)
     dof = max(full.size - 2, 1)
     s2 = float(np.dot(residual, residual) / dof)
-    slope_sigma = float(np.sqrt(covariance[0, 0] * s2))
+    variance = float(covariance[0, 0]) * s2
+    if not (np.isfinite(variance) and variance >= 0):  # amplitudes too alike to tell
+        return result, result_sigma, float("nan"), float("nan")
+    slope_sigma = float(np.sqrt(variance))
     drift = float(fit[0] * spread / result)
     drift_sigma = float(slope_sigma * spread / result)
     return result, result_sigma, drift, drift_sigma
@@ -806,6 +896,7 @@ def turning_points_from_table(t, values, *, domain="time", source="record"):
         raise ValueError("t and values must be 1-D arrays of the same length")
     finite = np.isfinite(t) & np.isfinite(values)
     t, values = t[finite], values[finite]
+    _check_range(t, values, source)
     if t.size < MIN_TURNING_POINTS:
         raise RecordError(f"only {t.size} turning points in {source} (need "
                           f"{MIN_TURNING_POINTS}). Use a longer table.")
