@@ -95,7 +95,7 @@ def test_batch_with_a_bad_file_keeps_going_and_exits_1(runner, tmp_path, rng):
     result = runner.invoke(cli, [str(good1), str(bad), str(good2), "--format", "json"])
     assert result.exit_code == 1
     lines = [json.loads(line) for line in result.stdout.splitlines()]
-    assert [Path(d["source"]).name for d in lines] == ["a.csv", "b.csv", "c.csv"]
+    assert [d["source"] for d in lines] == [str(good1), str(bad), str(good2)]  # as given
     assert [d["status"] for d in lines] == ["ok", "error", "ok"]
     assert "b.csv" in lines[1]["error"]
     assert result.stderr.count("Error:") == 1 and "Traceback" not in result.output

@@ -243,3 +243,20 @@ def test_real_records_need_no_options():
         spring = read_record(REALDATA / "spring_mass_disk" / name)
         assert spring.time_column == "time" and spring.signal_column == "position"
         assert spring.t[0] == 1.0
+
+
+@pytest.mark.parametrize("unit, factor", [("ms", 1e-3), ("µs", 1e-6), ("ns", 1e-9),
+                                          ("min", 60.0), ("h", 3600.0), ("s", 1.0)])
+def test_time_units_in_the_header_become_seconds(tmp_path, unit, factor):
+    path = write(tmp_path, "units.csv", f"time ({unit}),x\n" + rows(",", columns=(T / factor, X)))
+    record = read_record(path)
+    np.testing.assert_allclose(record.t, T, rtol=1e-12, atol=1e-15)
+    assert record.time_unit == "s"
+    assert any("converted" in note for note in record.notes) == (factor != 1.0)
+
+
+def test_an_unknown_time_unit_is_kept_and_said(tmp_path):
+    path = write(tmp_path, "frames.csv", "time (frames),x\n" + rows(","))
+    record = read_record(path)
+    np.testing.assert_allclose(record.t, T)
+    assert any("'frames' not recognised" in note for note in record.notes)

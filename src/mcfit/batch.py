@@ -6,6 +6,7 @@ strings, so worker processes send back little and the command line only writes.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
@@ -126,6 +127,8 @@ def _job_for(source, options, plot_path):
     except McfitError as error:
         analysis = failed_analysis(_display_name(source), " ".join(str(error).split()),
                                    record=record)
+    # Every row names its record as the user gave it, so scripts can match rows to files.
+    analysis = dataclasses.replace(analysis, source=_display_name(source))
     plot_error = None
     if plot_path is not None and analysis.status == "ok":
         try:

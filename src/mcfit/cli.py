@@ -252,6 +252,11 @@ def _column(value):
               help="Worker processes; results stay in input order.")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
         bootstrap, seed, output_format, output, plot_file, plot_dir, jobs):
+    if jobs > 1:
+        # Each worker fits small problems: BLAS threads would only compete for the cores.
+        # Set before numpy is first imported (here and in the workers); user settings win.
+        for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            os.environ.setdefault(variable, "1")
     from mcfit import batch
 
     sources = batch.expand_inputs(files)

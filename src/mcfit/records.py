@@ -43,6 +43,15 @@ _CYCLE_NAMES = {"n", "cycle", "cycles", "cycle number", "swing", "swings", "peri
 _SECONDARY_SIGNAL_WORDS = ("vel", "speed", "acc", "resid", "error", "err", "fit", "model",
                            "derivative")
 _NUMBER = re.compile(r"^[+-]?(\d+([.,]\d*)?|[.,]\d+)([eE][+-]?\d+)?$")
+# Time units a header may name, in seconds (the report gives coefficients per second).
+_SECONDS_PER_UNIT = {
+    "s": 1.0, "sec": 1.0, "secs": 1.0, "second": 1.0, "seconds": 1.0,
+    "ms": 1e-3, "msec": 1e-3, "us": 1e-6, "usec": 1e-6, "ns": 1e-9,
+    "min": 60.0, "mins": 60.0, "minute": 60.0, "minutes": 60.0,
+    "h": 3600.0, "hr": 3600.0, "hrs": 3600.0, "hour": 3600.0, "hours": 3600.0,
+}
+# Control characters other than tab, newline, vertical tab, form feed and carriage return.
+_CONTROL_CHARACTER = re.compile("[\x00-\x08\x0e-\x1f\x7f-\x9f]")
 _COMMA_DECIMAL = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
 _UNIT = re.compile(r"^(.*?)\s*[\(\[]\s*([^\)\]]*)\s*[\)\]]\s*$")
 
@@ -237,8 +246,7 @@ def _binary_problem(text):
     """A description of the binary bytes in decoded text, or None for plain text."""
     if "\x00" in text:
         return "NUL bytes"
-    control = sum(1 for c in text[: 1 << 16] if ord(c) < 32 and c not in "\t\n\r\f\v"
-                  or 0x7f <= ord(c) < 0xa0)
+    control = len(_CONTROL_CHARACTER.findall(text, 0, 1 << 16))
     if control > max(2, 0.01 * min(len(text), 1 << 16)):
         return "control bytes"
     return None
@@ -352,12 +360,15 @@ def _text_table(name, head, path):
             # Rows longer than the sniffed width (a leading empty field) are cut here; the
             # sample only guides the choice of columns, so pandas' warning is noise.
             warnings.simplefilter("ignore", pd.errors.ParserWarning)
-            sample = _numeric_frame(pd.read_csv(
-                io.StringIO(sample_text), sep=r"\s+" if sep is None else sep, header=None,
-                dtype=str, comment=comment, skip_blank_lines=True, engine="c",
-                keep_default_na=False, names=range(len(names)), index_col=False,
-                on_bad_lines="skip",
-            ), decimal)
+            common = dict(sep=r"\s+" if sep is None else sep, header=None, comment=comment,
+                          skip_blank_lines=True, engine="c", names=range(len(names)),
+                          index_col=False, on_bad_lines="skip")
+            try:  # all numbers: pandas' C parser makes the floats directly
+                sample = pd.read_csv(io.StringIO(sample_text), dtype=np.float64,
+                                     decimal=decimal, **common)
+            except ValueError:  # some text: parse as strings, text becomes NaN
+                sample = _numeric_frame(pd.read_csv(io.StringIO(sample_text), dtype=str,
+                                                    keep_default_na=False, **common), decimal)
     except (pd.errors.EmptyDataError, pd.errors.ParserError) as exc:
         raise _parse_error(name, exc) from None
     return _Table(name, names, sample, reader, notes)
@@ -837,6 +848,16 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
             other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
         notes.append(f"signal column: {_describe(table, signal_index)} (chosen automatically; "
                      f"use --signal-col to change{other})")
+
+    if domain == "time" and time_unit is not None:
+        seconds = _SECONDS_PER_UNIT.get(time_unit.strip().lower().replace("μ", "u").replace("µ", "u"))
+        if seconds is None:
+            notes.append(f"time unit '{time_unit}' not recognised: coefficients are per "
+                         f"{time_unit}, not per second")
+        elif seconds != 1.0:
+            t = t * seconds
+            notes.append(f"time converted from {time_unit} to seconds")
+            time_unit = "s"
 
     t = np.ascontiguousarray(t, dtype=np.float64)
     x = np.ascontiguousarray(x, dtype=np.float64)
