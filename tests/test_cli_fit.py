@@ -200,3 +200,40 @@ def test_help_does_not_import_the_numerical_stack():
                             env={**os.environ, "PYTHONWARNINGS": "ignore"})
     assert result.stdout.strip().splitlines()[-1] == "[]"
     assert "Exit codes" in result.stdout
+
+
+def test_cycle_domain_coefficients_are_reported_per_cycle(runner):
+    """A peak table against cycle number n gives a_n, b_n, c_n: never labelled per second."""
+    result = runner.invoke(cli, [str(SAMPLE_DATA / "fig20_20_peak_speed_cycles.csv"),
+                                 "--format", "json"])
+    data = json.loads(result.stdout)
+    assert data["domain"] == "cycle" and data["params_units"] == "per cycle"
+    assert data["params"]["a"]["value"] == pytest.approx(0.036, rel=0.03)
+    assert data["params_per_cycle"]["a"] == data["params"]["a"]
+    text = runner.invoke(cli, [str(SAMPLE_DATA / "fig20_20_peak_speed_cycles.csv")]).stdout
+    assert "parameters (per cycle)" in text and "per second" not in text
+
+
+def test_a_forced_model_is_reported_as_forced(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    text = runner.invoke(cli, [str(record), "--model", "ab"]).stdout
+    assert "(model ab, forced with --model)" in text
+    data = json.loads(runner.invoke(cli, [str(record), "--model", "ab", "--format",
+                                          "json"]).stdout)
+    assert data["fit"]["forced"] is True and data["model"] == "ab"
+
+
+def test_a_mistyped_command_is_not_taken_for_a_file(runner):
+    result = runner.invoke(cli, ["simulat", "--a", "0.1"])
+    assert result.exit_code == 2
+    assert "did you mean 'mcfit simulate'?" in result.stderr
+
+
+def test_plots_of_records_sharing_a_stem_keep_their_extension(runner, tmp_path):
+    plots = tmp_path / "plots"
+    result = runner.invoke(cli, [str(SAMPLE_DATA / "fig20_21_soup_can.csv"),
+                                 str(SAMPLE_DATA / "fig20_21_soup_can.xlsx"),
+                                 "--plot-dir", str(plots)])
+    assert result.exit_code == 0
+    assert sorted(p.name for p in plots.iterdir()) == ["fig20_21_soup_can.png",
+                                                       "fig20_21_soup_can.xlsx.png"]

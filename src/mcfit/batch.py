@@ -74,6 +74,8 @@ def plot_path_for(source: str, plot_dir: str, taken: set) -> str:
     """A PNG name in ``plot_dir`` from the record's file name, unique within the batch."""
     stem = "stdin" if source == "-" else Path(source).stem
     candidate = Path(plot_dir) / f"{stem}.png"
+    if str(candidate) in taken:  # e.g. run.csv and run.xlsx: keep the extension in the name
+        candidate = Path(plot_dir) / f"{Path(source).name}.png"
     number = 2
     while str(candidate) in taken:
         candidate = Path(plot_dir) / f"{stem}-{number}.png"
@@ -164,7 +166,7 @@ def _plot(analysis, path):
     view = RecordView(title=Path(analysis.source).name, t=t, x=x, equilibrium=equilibrium,
                       turning_t=np.asarray(turning.t), turning_x=np.asarray(turning_x),
                       used=np.asarray(turning.used), time_label=time_label,
-                      signal_label=signal_label)
+                      signal_label=signal_label, signal_unit=record.signal_unit or "U")
     save_figure(report_figure(view, fit), path)
 
 

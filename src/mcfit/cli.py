@@ -8,6 +8,7 @@ stderr and exit with the error's code; anything else is a bug and keeps its trac
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import sys
@@ -46,6 +47,10 @@ class McfitGroup(click.Group):
         group_options = {"-h", "--help", "--version"}
         if (self.default_command is not None and args and args[0] not in group_options
                 and args[0] not in self.commands):
+            near = difflib.get_close_matches(args[0], list(self.commands), n=1, cutoff=0.75)
+            if near and args[0] != "-" and not os.path.exists(args[0]):
+                raise click.UsageError(f"no command or file {args[0]!r}; did you mean "
+                                       f"'mcfit {near[0]}'?")
             args = [self.default_command, *args]
         return super().parse_args(ctx, args)
 
@@ -206,7 +211,7 @@ Exit codes:
 
 \b
 Examples:
-  mcfit sample_data/fig20_19.csv
+  mcfit sample_data/fig20_19_all_three.csv
   mcfit run1.csv --plot run1.png
   mcfit data/ --format csv -o results.csv --plot-dir plots --jobs 2
   mcfit lab.txt --signal-col 2 --model ab

@@ -96,6 +96,7 @@ class DecayFit:
     bootstrap: dict | None = None
     power_law: dict | None = None
     warnings: tuple = ()
+    forced: bool = False  # the model was given (model=...), not chosen by the criterion
 
     def to_dict(self) -> dict:
         """JSON-ready summary (arrays as lists)."""
@@ -418,7 +419,7 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
         candidates=tuple(candidates), n_points=n, rms=rms, reduced_chi_square=float(reduced),
         noise_from_residuals=noise_from_residuals, t=t, y=y, y_fit=y_fit, sigma=sigma,
         q=q, q_stderr=q_stderr, q_parts=q_parts, q_summary=q_summary, bootstrap=boot,
-        warnings=tuple(warnings))
+        warnings=tuple(warnings), forced=model is not None)
 
 
 def _diagnose(chosen, values, stderr, correlation, weighted_residuals, converged):
@@ -532,4 +533,4 @@ def _fit_power_law(scaled, t, y, sigma, omega, domain, criterion, noise_from_res
         candidates=(candidate,), n_points=n_points,
         rms=float(np.sqrt(np.mean((y_fit - y) ** 2))), reduced_chi_square=float(reduced),
         noise_from_residuals=noise_from_residuals, t=t, y=y, y_fit=y_fit, sigma=sigma, q=q,
-        q_stderr=None, q_parts=None, q_summary=q_summary, power_law=power)
+        q_stderr=None, q_parts=None, q_summary=q_summary, power_law=power, forced=True)

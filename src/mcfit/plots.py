@@ -29,7 +29,8 @@ class RecordView:
     ``t``/``x`` are the waveform samples (None for a turning-point table);
     ``equilibrium`` the estimated equilibrium at each sample (same shape as ``t``) or None;
     ``turning_t``/``turning_x`` the signed extremum positions; ``used`` marks the turning
-    points that entered the fit (their amplitudes are ``fit.y``).
+    points that entered the fit (their amplitudes are ``fit.y``). ``signal_unit`` names the
+    signal's unit U in the coefficients' units (a in 1/(U*s), c in U/s).
     """
 
     title: str
@@ -41,6 +42,7 @@ class RecordView:
     used: np.ndarray
     time_label: str = "time (s)"
     signal_label: str = "signal"
+    signal_unit: str = "U"  # the signal's unit, for the coefficients' units
 
 
 def report_figure(view: RecordView, fit: DecayFit) -> Figure:
@@ -62,15 +64,18 @@ def report_figure(view: RecordView, fit: DecayFit) -> Figure:
     # Free the blank cell under the record panel for a parameter summary.
     summary = figure.add_subplot(grid[1, 0])
     summary.axis("off")
-    summary.text(0.0, 1.0, _summary_text(fit), va="top", ha="left", family="monospace",
+    summary.text(0.0, 1.0, _summary_text(fit, view.signal_unit), va="top", ha="left",
+                 family="monospace",
                  fontsize=9, transform=summary.transAxes)
     return figure
 
 
-def _summary_text(fit: DecayFit) -> str:
+def _summary_text(fit: DecayFit, signal_unit: str) -> str:
     unit = "s" if fit.domain == "time" else "cycle"
+    u = signal_unit
     lines = []
-    for key, label in (("a", f"a (1/(U*{unit}))"), ("b", f"b (1/{unit})"), ("c", f"c (U/{unit})")):
+    for key, label in (("a", f"a (1/({u}*{unit}))"), ("b", f"b (1/{unit})"),
+                       ("c", f"c ({u}/{unit})")):
         value, error = fit.values[key], fit.stderr[key]
         if fit.model != "power" and key in fit.model:
             lines.append(f"{label:16s} {value:.4g} +- {error:.2g}" if error else

@@ -25,18 +25,11 @@ def _number(value):
 
 
 def _params_in_time_units(analysis: Analysis):
-    """(values, stderrs, unit note): cycle-domain coefficients become per-second when T is known."""
-    fit, turning = analysis.fit, analysis.turning
-    values = dict(fit.values)
-    stderr = dict(fit.stderr)
-    period = _number(turning.period) if turning is not None else None
-    if fit.domain == "cycle":
-        if period is None:
-            return values, stderr, "per cycle (no period known)"
-        for k in TERMS:
-            values[k] = values[k] / period
-            stderr[k] = None if stderr[k] is None else stderr[k] / period
-    return values, stderr, "per second"
+    """(values, stderrs, unit note). In the cycle domain the record gives no period in
+    seconds (its "period" is 1 cycle), so the coefficients stay per cycle."""
+    fit = analysis.fit
+    unit = "per cycle" if fit.domain == "cycle" else "per second"
+    return dict(fit.values), dict(fit.stderr), unit
 
 
 def _params_per_cycle(analysis: Analysis):
@@ -74,7 +67,7 @@ def to_json_dict(analysis: Analysis) -> dict:
         out["t0"] = _number(fit.t0)  # time (or cycle) of the first turning point used, where y = y0
         q = fit.q_summary or {}
         out["q"] = {k: _number(q.get(k)) for k in ("initial", "final", "min", "max")}
-        out["fit"] = {"criterion": fit.criterion, "rms": _number(fit.rms),
+        out["fit"] = {"criterion": fit.criterion, "forced": fit.forced, "rms": _number(fit.rms),
                       "reduced_chi_square": _number(fit.reduced_chi_square),
                       "lrt_p_values": {REGIME_NAMES.get(k, k): _number(p)
                                        for k, p in fit.lrt_p_values.items()},
@@ -170,8 +163,9 @@ def to_text(analysis: Analysis) -> str:
                      f"k = {_format(p['k'], p.get('k_stderr'))}")
     else:
         present = [REGIME_NAMES[k] for k in fit.model]
-        lines.append(f"  regimes present: {', '.join(present)} (model {fit.model}, by "
-                     f"{fit.criterion.upper()} and likelihood-ratio test)")
+        how = ("forced with --model" if fit.forced else
+               f"by {fit.criterion.upper()} and likelihood-ratio test")
+        lines.append(f"  regimes present: {', '.join(present)} (model {fit.model}, {how})")
         for k, p in fit.lrt_p_values.items():
             if len(fit.model) > 1:
                 lines.append(f"    {REGIME_NAMES[k]:11s} term: p = {p:.2g} that the record "
@@ -179,8 +173,8 @@ def to_text(analysis: Analysis) -> str:
     params = data["params"]
     unit = data.get("params_units", "per second")
     lines.append(f"  parameters ({unit}):")
-    t0_unit = "s" if fit.domain == "time" else ""
-    labels = {"y0": f"y0 (amplitude at {fit.t0:.4g} {t0_unit})".replace(" )", ")"),
+    at = f"{fit.t0:.4g} s" if fit.domain == "time" else f"n = {fit.t0:.4g}"
+    labels = {"y0": f"y0 (amplitude at {at})",
               "a": "a (fluid)", "b": "b (hysteretic)", "c": "c (Coulomb)"}
     for k in ("y0", "a", "b", "c"):
         lines.append(f"    {labels[k]:28s} {_format(params[k]['value'], params[k]['stderr'])}")
