@@ -237,3 +237,49 @@ def test_plots_of_records_sharing_a_stem_keep_their_extension(runner, tmp_path):
     assert result.exit_code == 0
     assert sorted(p.name for p in plots.iterdir()) == ["fig20_21_soup_can.png",
                                                        "fig20_21_soup_can.xlsx.png"]
+
+
+def test_an_unknown_time_unit_labels_the_coefficients(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    lines = record.read_text().splitlines()
+    days = tmp_path / "days.csv"
+    days.write_text("\n".join(["time (days),x"] + lines[1:]) + "\n")
+    data = json.loads(runner.invoke(cli, [str(days), "--format", "json"]).stdout)
+    assert data["params_units"] == "per days"
+    assert "parameters (per days)" in runner.invoke(cli, [str(days)]).stdout
+
+
+def test_output_file_keeps_the_mode_of_the_file_it_replaces(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    out = tmp_path / "private.csv"
+    out.write_text("old\n")
+    out.chmod(0o600)
+    assert runner.invoke(cli, [str(record), "--format", "csv", "-o", str(out)]).exit_code == 0
+    assert out.stat().st_mode & 0o777 == 0o600 and out.read_text().startswith("source,")
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--rate", "100", "--time-col", "t"], "not both"),
+    (["--plot", "a.png", "--plot-dir", "plots"], "not both"),
+])
+def test_contradictory_options_exit_2_before_any_file_is_read(runner, tmp_path, rng,
+                                                             arguments, message):
+    record = _write_record(tmp_path / "run.csv", rng)
+    result = runner.invoke(cli, [str(record), *arguments])
+    assert result.exit_code == 2 and message in result.stderr
+    assert result.stdout == ""
+
+
+def test_single_term_has_no_made_up_p_value(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "soup.csv", rng, a=0.22, b=0.0, c=0.0, y0=1.0)
+    data = json.loads(runner.invoke(cli, [str(record), "--format", "json"]).stdout)
+    assert data["model"] == "a" and data["fit"]["lrt_p_values"] == {}
+
+
+def test_public_names_are_reexported_lazily():
+    import mcfit
+
+    assert mcfit.fit_decay.__module__ == "mcfit.fit"
+    assert "fit_decay" in mcfit.__all__
+    with pytest.raises(AttributeError):
+        mcfit.no_such_name  # noqa: B018

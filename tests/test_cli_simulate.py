@@ -134,7 +134,7 @@ def test_python_dash_m_runs_the_same_command(tmp_path):
 
 
 def test_group_can_route_to_a_default_command(runner):
-    """The hook a later ``mcfit FILE...`` (implicit ``fit``) will use."""
+    """The hook behind ``mcfit FILE...`` (an implicit ``fit``), shown on a stand-in group."""
 
     class Group(McfitGroup):
         default_command = "echo"

@@ -60,6 +60,6 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
                         bootstrap=bootstrap, rng=rng)
     except McfitError as error:
         return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)
-    status = fit.status
-    return Analysis(source=source, status=status, error=fit.message, record=record,
+    error = None if fit.message is None else f"{source}: {fit.message}"
+    return Analysis(source=source, status=fit.status, error=error, record=record,
                     turning=turning, fit=fit)

@@ -12,12 +12,13 @@ import difflib
 import math
 import os
 import sys
-import tempfile
+from pathlib import Path
 
 import click
 
 from mcfit import __version__
 from mcfit.errors import McfitError, UsageError
+from mcfit.files import replace_atomically, temporary_beside
 
 __all__ = ["cli", "main", "McfitGroup"]
 
@@ -207,7 +208,8 @@ Diagnostics and progress go to stderr.
 Exit codes:
   0  every record was fitted
   1  at least one record failed (its row says why; the others are still reported)
-  2  usage error (bad options)
+  2  usage error (bad or contradictory options); an option that one file
+     cannot satisfy (a column it lacks) fails that file instead (1)
 
 \b
 Examples:
@@ -269,6 +271,11 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
             not model or set(model.lower()) - set("abc")):
         raise UsageError(f"--model {model!r} is not a set of regimes; use letters from abc "
                          "(e.g. ab) or power.")
+    if plot_file is not None and plot_dir is not None:
+        raise UsageError("give --plot FILE or --plot-dir DIR, not both.")
+    if rate is not None and time_col is not None:
+        raise UsageError("give either --time-col or --rate (time from the sample index), "
+                         "not both.")
     if plot_file is not None and len(sources) != 1:
         raise UsageError("--plot takes one record; for several use --plot-dir DIR.")
     if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf",
@@ -319,15 +326,7 @@ def _write_results(results, sources, output_format, output):
     if output == "-":
         stream, temporary = sys.stdout, None
     else:
-        directory = os.path.dirname(os.path.abspath(output))
-        try:
-            handle, temporary = tempfile.mkstemp(dir=directory,
-                                                 prefix=f".{os.path.basename(output)}.",
-                                                 suffix=".tmp")
-        except OSError as error:
-            raise McfitError(f"cannot write {output}: {error.strerror or error}; check that "
-                             "the directory exists and is writable.") from error
-        stream = os.fdopen(handle, "w", newline="")
+        stream, temporary = _open_output(output)
     failures = done = 0
     show_progress = total > 1 and sys.stderr.isatty()
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
@@ -379,16 +378,15 @@ def _pretty_json(line):
 
 
 def _finish_output(stream, temporary, output):
+    """Flush stdout, or make the temporary file whole on disk and move it onto ``output``."""
     if temporary is None:
         stream.flush()
         return
-    stream.flush()
-    os.fsync(stream.fileno())
-    stream.close()
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(temporary, 0o666 & ~umask)
-    os.replace(temporary, output)
+    if not stream.closed:
+        stream.flush()
+        os.fsync(stream.fileno())
+        stream.close()
+    replace_atomically(temporary, output)
 
 
 _BENCH_HELP = """Measure speed against error and print the tables (BENCHMARKS.md).
@@ -444,35 +442,25 @@ def bench_command(full, sections, repeats, seed, output_dir):
                          f"{error.strerror or error}") from error
 
 
-def _write_atomically(path, write):
-    """Write a text file through a temporary file in the same directory and os.replace."""
-    directory = os.path.dirname(os.path.abspath(path))
+def _open_output(path):
+    """A text stream to a temporary file beside ``path``, and that file's name."""
     try:
-        existing_mode = os.stat(path).st_mode & 0o777
-    except FileNotFoundError:
-        umask = os.umask(0)
-        os.umask(umask)
-        existing_mode = 0o666 & ~umask
-    except OSError as error:
-        raise McfitError(f"cannot write {path}: {error.strerror or error}") from error
-    try:
-        handle, temporary = tempfile.mkstemp(dir=directory, prefix=f".{os.path.basename(path)}.",
-                                             suffix=".tmp")
+        temporary = temporary_beside(os.path.abspath(path))
     except OSError as error:
         raise McfitError(f"cannot write {path}: {error.strerror or error}; check that the "
                          "directory exists and is writable.") from error
+    return open(temporary, "w", newline=""), temporary
+
+
+def _write_atomically(path, write):
+    """Write a text file through a temporary file in the same directory and os.replace."""
+    stream, temporary = _open_output(path)
     try:
-        with os.fdopen(handle, "w", newline="") as stream:
-            write(stream)
-            stream.flush()
-            os.fsync(stream.fileno())
-        os.chmod(temporary, existing_mode)
-        os.replace(temporary, path)
+        write(stream)
+        _finish_output(stream, temporary, path)
     except BaseException as error:
-        try:
-            os.unlink(temporary)
-        except OSError:
-            pass
+        stream.close()
+        Path(temporary).unlink(missing_ok=True)
         if isinstance(error, OSError):
             raise McfitError(f"cannot write {path}: {error.strerror or error}") from error
         raise

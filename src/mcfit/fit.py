@@ -21,7 +21,7 @@ from scipy import optimize, stats
 from mcfit import decay
 from mcfit.errors import FitError
 
-__all__ = ["MODELS", "REGIME_NAMES", "DecayFit", "fit_decay"]
+__all__ = ["MODELS", "TERMS", "REGIME_NAMES", "Candidate", "DecayFit", "fit_decay"]
 
 TERMS = ("a", "b", "c")
 # The seven non-empty subsets of {a, b, c}, as letters in the order a, b, c.
@@ -33,6 +33,8 @@ LRT_ALPHA = 0.01
 # |correlation| above this between two kept parameters: the record hardly tells them apart.
 DEGENERATE_CORRELATION = 0.98
 MIN_POINTS = 4
+# Column of each parameter in decay.amplitude_jacobian.
+_COLUMN = {"y0": 0, "a": 1, "b": 2, "c": 3}
 # Amplitudes and times beyond these cannot be squared and multiplied in float64.
 _LARGEST = 1e30
 _SMALLEST = 1e-30
@@ -193,10 +195,8 @@ def _fit_subset(scaled, terms):
     for k in TERMS:
         params.add(k, value=start[k], min=0.0, vary=k in terms)
     free = ["y0"] + list(terms)
-    column = {"y0": 0, "a": 1, "b": 2, "c": 3}
     t, y, w = scaled.t, scaled.y, scaled.weights
-
-    free_columns = [column[k] for k in free]
+    free_columns = [_COLUMN[k] for k in free]
     last = {}  # the law at the last parameters: scipy asks for the Jacobian where it just
     # evaluated the residuals, so one evaluation serves both
 
@@ -267,8 +267,7 @@ def _q_with_stderr(t_scaled, values, covar_physical, free, scaled, omega):
         direct = {"a": -omega * y**3 / denominator, "b": -omega * y**2 / denominator,
                   "c": -omega * y / denominator, "y0": np.zeros_like(y)}
         jac_y = decay.amplitude_jacobian(t_phys, y0, a, b, c)
-        column = {"y0": 0, "a": 1, "b": 2, "c": 3}
-        gradient = np.column_stack([dq_dy * jac_y[:, column[k]] + direct[k] for k in free])
+        gradient = np.column_stack([dq_dy * jac_y[:, _COLUMN[k]] + direct[k] for k in free])
         variance = np.einsum("ij,jk,ik->i", gradient, covar_physical, gradient)
         q_stderr = np.sqrt(np.maximum(variance, 0.0))
     return q, np.where(np.isfinite(q_stderr), q_stderr, np.nan)
@@ -377,8 +376,9 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
     else:
         chosen = model
     values, covar, free, chi_square, ok = fits[chosen]
+    # A single term has no smaller model in the family to be tested against.
     p_values = ({k: _boundary_lrt_p_value(fits[chosen.replace(k, "")][3], chi_square, n)
-                 for k in chosen} if len(chosen) > 1 else {chosen: 0.0})
+                 for k in chosen} if len(chosen) > 1 else {})
 
     dof = n - len(free)
     reduced = chi_square / dof if dof > 0 else math.nan
@@ -399,6 +399,8 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
 
     y_fit = decay.amplitude(t - t[0], *physical_values)
     weighted_residuals = (y_fit - y) / sigma
+    if noise_from_residuals and math.isfinite(reduced):
+        sigma = sigma * math.sqrt(reduced)  # the amplitude noise the residuals show
     rms = float(np.sqrt(np.mean((y_fit - y) ** 2)))
     warnings += _diagnose(chosen, values_dict, stderr, correlation, weighted_residuals, ok)
 
@@ -407,7 +409,7 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
         q, q_stderr = _q_with_stderr(scaled.t, physical_values, covar_physical, free, scaled, omega)
         parts = decay.quality_parts(y_fit, omega, *physical_values[1:])
         q_parts = {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}
-        q_summary = _summarise_q(q, omega, domain)
+        q_summary = _summarise_q(q)
 
     boot = (_bootstrap(scaled, chosen, physical_values, y_fit, y, sigma, omega, bootstrap, rng)
             if bootstrap else None)
@@ -444,7 +446,7 @@ def _diagnose(chosen, values, stderr, correlation, weighted_residuals, converged
     return warnings
 
 
-def _summarise_q(q, omega, domain):
+def _summarise_q(q):
     finite = q[np.isfinite(q)]
     if finite.size == 0:
         return None
@@ -513,7 +515,7 @@ def _fit_power_law(scaled, t, y, sigma, omega, domain, criterion, noise_from_res
     if omega is not None:
         with np.errstate(divide="ignore"):
             q = omega / (2 * k * y_fit ** (n_exp - 1))
-        q_summary = _summarise_q(q, omega, domain)
+        q_summary = _summarise_q(q)
     aicc, bic = _information_criteria(chi_square, n_points, 3)
     # Standard errors: y0 scales with A, n is dimensionless; k's unit depends on n, so its
     # relative error carries over.

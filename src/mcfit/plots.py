@@ -5,8 +5,6 @@ matplotlib is used through ``matplotlib.figure.Figure`` only (no pyplot, no disp
 
 from __future__ import annotations
 
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -14,6 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from mcfit import decay
+from mcfit.files import replace_atomically, temporary_beside
 from mcfit.fit import REGIME_NAMES, DecayFit
 
 __all__ = ["RecordView", "report_figure", "save_figure"]
@@ -196,15 +195,10 @@ def save_figure(figure: Figure, path) -> None:
     suffix = path.suffix.lower().lstrip(".")
     if suffix not in {"png", "pdf", "svg"}:
         raise ValueError(f"plot file {path} must end in .png, .pdf or .svg")
-    handle, temporary = tempfile.mkstemp(dir=path.parent or ".", suffix=path.suffix,
-                                         prefix=f".{path.name}.")
-    os.close(handle)
+    temporary = temporary_beside(path)
     try:
         figure.savefig(temporary, format=suffix, dpi=110)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(temporary, 0o666 & ~umask)  # mkstemp makes 0600; give the usual mode
-        os.replace(temporary, path)
+        replace_atomically(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise

@@ -7,6 +7,7 @@ import io
 import json
 import math
 
+from mcfit import decay
 from mcfit.analysis import Analysis
 from mcfit.fit import REGIME_NAMES, TERMS
 
@@ -27,8 +28,12 @@ def _number(value):
 def _params_in_time_units(analysis: Analysis):
     """(values, stderrs, unit note). In the cycle domain the record gives no period in
     seconds (its "period" is 1 cycle), so the coefficients stay per cycle."""
-    fit = analysis.fit
-    unit = "per cycle" if fit.domain == "cycle" else "per second"
+    fit, record = analysis.fit, analysis.record
+    if fit.domain == "cycle":
+        unit = "per cycle"
+    else:
+        time_unit = getattr(record, "time_unit", None) or "s"
+        unit = "per second" if time_unit == "s" else f"per {time_unit}"  # an unknown unit
     return dict(fit.values), dict(fit.stderr), unit
 
 
@@ -41,9 +46,10 @@ def _params_per_cycle(analysis: Analysis):
     period = _number(turning.period) if turning is not None else None
     if period is None:
         return None
-    return {k: {"value": _number(fit.values[k] * period),
-                "stderr": None if fit.stderr[k] is None else _number(fit.stderr[k] * period)}
-            for k in TERMS}
+    values = decay.to_cycle_units(*(fit.values[k] for k in TERMS), period)
+    errors = [None if fit.stderr[k] is None else fit.stderr[k] * period for k in TERMS]
+    return {k: {"value": _number(v), "stderr": _number(e)}
+            for k, v, e in zip(TERMS, values, errors)}
 
 
 def to_json_dict(analysis: Analysis) -> dict:
@@ -176,10 +182,10 @@ def to_text(analysis: Analysis) -> str:
     at = f"{fit.t0:.4g} s" if fit.domain == "time" else f"n = {fit.t0:.4g}"
     labels = {"y0": f"y0 (amplitude at {at})",
               "a": "a (fluid)", "b": "b (hysteretic)", "c": "c (Coulomb)"}
-    for k in ("y0", "a", "b", "c"):
+    for k in ("y0",) if fit.model == "power" else ("y0", "a", "b", "c"):
         lines.append(f"    {labels[k]:28s} {_format(params[k]['value'], params[k]['stderr'])}")
     per_cycle = data.get("params_per_cycle")
-    if per_cycle is not None and unit == "per second":
+    if per_cycle is not None and unit == "per second" and fit.model != "power":
         lines.append("  per cycle:       " + ", ".join(
             f"{k}*T = {per_cycle[k]['value']:.4g}" for k in TERMS if per_cycle[k]["value"]))
     q = data["q"]
