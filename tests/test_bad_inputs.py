@@ -122,12 +122,17 @@ def _latin1_header(tmp):
     return [str(tmp / "latin1.csv")]
 
 
-def _text_in_numbers(tmp):
-    path = _decay_record(tmp / "text.csv", duration=5.0)
+def _set_signal(path, rows, value):
+    """Overwrite the signal of the given data-file lines (line 0 is the header)."""
     lines = path.read_text().splitlines()
-    lines[40] = lines[40].split(",")[0] + ",overload"
+    for row in rows:
+        lines[row] = lines[row].split(",")[0] + "," + value
     path.write_text("\n".join(lines) + "\n")
     return [str(path)]
+
+
+def _text_in_numbers(tmp):
+    return _set_signal(_decay_record(tmp / "text.csv", duration=5.0), [40], "overload")
 
 
 def _open_quote(tmp):
@@ -150,21 +155,11 @@ def _fifo(tmp):
 
 
 def _inf_in_signal(tmp):
-    path = _decay_record(tmp / "inf.csv", duration=10.0)
-    lines = path.read_text().splitlines()
-    for row in (50, 51, 300):
-        lines[row] = lines[row].split(",")[0] + ",inf"
-    path.write_text("\n".join(lines) + "\n")
-    return [str(path)]
+    return _set_signal(_decay_record(tmp / "inf.csv", duration=10.0), (50, 51, 300), "inf")
 
 
 def _nan_in_signal(tmp):
-    path = _decay_record(tmp / "nan.csv", duration=20.0)
-    lines = path.read_text().splitlines()
-    for row in range(200, 205):
-        lines[row] = lines[row].split(",")[0] + ",nan"
-    path.write_text("\n".join(lines) + "\n")
-    return [str(path)]
+    return _set_signal(_decay_record(tmp / "nan.csv", duration=20.0), range(200, 205), "nan")
 
 
 def _all_nan_signal(tmp):

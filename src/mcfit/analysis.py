@@ -11,7 +11,7 @@ from mcfit.errors import McfitError
 from mcfit.fit import DecayFit, fit_decay
 from mcfit.turning import TurningPoints, turning_points_of
 
-__all__ = ["Analysis", "analyse_record", "failed_analysis"]
+__all__ = ["Analysis", "analyse_record", "failed_analysis", "fit_turning_points"]
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,19 @@ def failed_analysis(source: str, message: str, record=None, turning=None) -> Ana
     return Analysis(source=source, status="error", error=message, record=record, turning=turning)
 
 
+def fit_turning_points(turning: TurningPoints, **options) -> DecayFit:
+    """:func:`mcfit.fit.fit_decay` on the used turning points, with their uncertainties
+    (only when every one is finite and > 0) and period (when known); ``options`` go to
+    ``fit_decay``. Raises :class:`mcfit.errors.FitError` for unusable turning points."""
+    used = turning.used
+    sigma = turning.sigma[used]
+    if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
+        sigma = None
+    period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
+    return fit_decay(turning.t[used], turning.y[used], sigma, period=period,
+                     domain=turning.domain, **options)
+
+
 def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=None) -> Analysis:
     """Turning points of ``record`` and the fit of the amplitude law to the used ones.
 
@@ -49,15 +62,9 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
         turning = turning_points_of(record)
     except McfitError as error:
         return failed_analysis(source, str(error), record=record)
-    used = turning.used
-    sigma = turning.sigma[used]
-    if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
-        sigma = None
-    period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
     try:
-        fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
-                        domain=turning.domain, criterion=criterion, model=model,
-                        bootstrap=bootstrap, rng=rng)
+        fit = fit_turning_points(turning, criterion=criterion, model=model,
+                                 bootstrap=bootstrap, rng=rng)
     except McfitError as error:
         return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)
     error = None if fit.message is None else f"{source}: {fit.message}"

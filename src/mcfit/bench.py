@@ -473,8 +473,8 @@ def _mcfit_estimates(t, x, model):
     Returns a dict with, for "forced" and "selected", the coefficients (dict), standard
     errors (dict), chosen model and seconds (turning points included); None on failure.
     """
+    from mcfit.analysis import fit_turning_points
     from mcfit.errors import McfitError
-    from mcfit.fit import fit_decay
     from mcfit.turning import find_turning_points
 
     start = time.perf_counter()
@@ -483,16 +483,11 @@ def _mcfit_estimates(t, x, model):
     except McfitError:
         return {"forced": None, "selected": None}
     turning_seconds = time.perf_counter() - start
-    used = turning.used
-    sigma = turning.sigma[used]
-    if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
-        sigma = None
-    period = turning.period if math.isfinite(turning.period) else None
     out = {}
     for name, forced in (("forced", model), ("selected", None)):
         start = time.perf_counter()
         try:
-            fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period, model=forced)
+            fit = fit_turning_points(turning, model=forced)
         except McfitError:
             out[name] = None
             continue
@@ -613,6 +608,7 @@ def run_fitting(config: BenchConfig = QUICK, progress=None) -> list:
     # Imported here so that no record's time includes loading them.
     import scipy.signal  # noqa: F401
 
+    import mcfit.analysis  # noqa: F401
     import mcfit.fit  # noqa: F401
     import mcfit.turning  # noqa: F401
 
