@@ -90,6 +90,30 @@ def test_amplitude_matches_quadrature_of_the_law(name, scale):
             assert error <= 1e-10 * yt, (t, yt, error / yt)
 
 
+@pytest.mark.parametrize("scale", [1e-9, 1.0, 1e9])
+@pytest.mark.parametrize("name", list(REGIMES))
+def test_one_parameter_set_agrees_with_parameter_arrays(name, scale):
+    """Sorted times with one parameter set (a fit's case) take a faster path than parameter
+    arrays or unsorted times: both must give the same amplitudes and Jacobians."""
+    y0, a, b, c = REGIMES[name]
+    y0, a, c = y0 * scale, a / scale, c * scale
+    horizon = min(50 * _decay_time(y0, a, b, c), decay.stop_time(y0, a, b, c))
+    times = horizon * np.concatenate([np.linspace(0.0, 1.0, 41), [1.5, 3.0, 1e3]])
+    ones = np.ones_like(times)
+    y, jacobian = decay.amplitude_and_jacobian(times, y0, a, b, c)
+    y_ref, jacobian_ref = decay.amplitude_and_jacobian(times, y0 * ones, a * ones, b * ones,
+                                                       c * ones)
+    np.testing.assert_allclose(y, y_ref, rtol=1e-12, atol=1e-15 * y0)
+    finite = np.isfinite(jacobian_ref)  # dy/da overflows for a = 1e-309, t = 1e303
+    np.testing.assert_array_equal(jacobian[~finite], jacobian_ref[~finite])
+    column_scale = np.max(np.abs(np.where(finite, jacobian_ref, 0.0)), axis=0) + 1e-300
+    np.testing.assert_allclose(np.where(finite, jacobian, 0.0) / column_scale,
+                               np.where(finite, jacobian_ref, 0.0) / column_scale, atol=1e-12)
+    order = np.random.default_rng(7).permutation(times.size)
+    np.testing.assert_allclose(decay.amplitude(times[order], y0, a, b, c), y_ref[order],
+                               rtol=1e-12, atol=1e-15 * y0)
+
+
 @pytest.mark.parametrize("name", [n for n, p in REGIMES.items() if p[3] > 0])
 def test_stop_time_matches_quadrature_and_amplitude_stays_zero(name):
     y0, a, b, c = REGIMES[name]

@@ -260,3 +260,53 @@ def test_an_unknown_time_unit_is_kept_and_said(tmp_path):
     record = read_record(path)
     np.testing.assert_allclose(record.t, T)
     assert any("'frames' not recognised" in note for note in record.notes)
+
+
+@pytest.mark.parametrize("quoted", [False, True])
+def test_time_column_after_the_signal(tmp_path, quoted):
+    # Quoted values are read by the second, column-by-column parse; plain ones in one parse.
+    def q(v):
+        return f'"{v!r}"' if quoted else repr(v)
+    text = "angle,time (s)\n" + "".join(f"{q(float(x))},{q(float(t))}\n" for t, x in zip(T, X))
+    path = write(tmp_path, "late.csv", text)
+    record = read_record(path)
+    check(record)
+    assert record.time_column == "time (s)" and record.signal_column == "angle"
+    check(read_record(path, time_col=2, signal_col=1))
+
+
+def test_a_plain_numeric_file_is_parsed_once(tmp_path, monkeypatch):
+    import pandas as pd
+    calls = []
+    real = pd.read_csv
+
+    def counting(*args, **kwargs):
+        calls.append(kwargs.get("usecols"))
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(pd, "read_csv", counting)
+    check(read_record(write(tmp_path, "plain.csv", "t,x\n" + rows(","))))
+    assert len(calls) == 1
+    calls.clear()
+    check(read_record(write(tmp_path, "plain.txt", "# run 1\ntime (s) x\n" + rows(" "))))
+    assert len(calls) == 1
+
+
+@pytest.mark.parametrize("variant", ["crlf", "cr", "quoted values", "quoted header",
+                                     "quote in a comment", "blank lines", "padding spaces"])
+def test_text_variants_read_as_the_plain_file(tmp_path, variant):
+    lines = ("t,x\n" + rows(",")).splitlines()
+    if variant == "quoted values":
+        lines = [lines[0]] + ['"' + line.replace(",", '","') + '"' for line in lines[1:]]
+    elif variant == "quoted header":
+        lines[0] = '"t","x"'
+    elif variant == "quote in a comment":
+        lines = ['# exported by "logger', *lines]
+    elif variant == "blank lines":
+        lines = lines[:10] + ["", "  "] + lines[10:]
+    elif variant == "padding spaces":
+        lines = [lines[0]] + [line.replace(",", ",  ") + " " for line in lines[1:]]
+    eol = {"crlf": "\r\n", "cr": "\r"}.get(variant, "\n")
+    record = read_record(write(tmp_path, "variant.csv", eol.join(lines) + eol))
+    check(record)
+    assert record.time_column == "t" and record.signal_column == "x"

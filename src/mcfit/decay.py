@@ -14,10 +14,14 @@ The closed form is THEORY.md section 3::
 Phi is analytic across u = 0 (a series is used there), so b**2 = 4ac needs no special case.
 Where D > 0 and s*t >= 1 (s = sqrt(sigma)) the same expression is rewritten with
 E = exp(-2*s*t) so that exponential tails keep their relative accuracy.
+
+One parameter set at sorted times (a fit's case) is evaluated by a faster path with the
+same formulas; parameter arrays and unsorted times by the general one.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 
 import numpy as np
@@ -26,6 +30,7 @@ __all__ = [
     "amplitude",
     "amplitude_jacobian",
     "amplitude_and_jacobian",
+    "amplitude_terms",
     "stop_time",
     "decay_rate",
     "quality_factor",
@@ -190,6 +195,11 @@ def stop_time(y0, a, b, c):
         The stop time in s; ``inf`` when ``c == 0`` (the amplitude only tends to zero),
         0 when ``y0 == 0`` and ``c > 0``.
     """
+    if _is_scalar(y0) and _is_scalar(a) and _is_scalar(b) and _is_scalar(c):
+        # The scalar code _SortedTerms uses, so that amplitude() is 0 from this time on.
+        law = _one_law(float(y0), float(a), float(b), float(c))
+        if law is not None:
+            return np.float64(_one_law_constants(*law[1:])[2] / law[0])
     shape = _shape_of(y0, a, b, c)
     y0, a, b, c = _as_flat_arrays(y0, a, b, c)
     law = _Normalized(y0, a, b, c)
@@ -292,6 +302,211 @@ class _LawTerms:
         return jacobian.reshape(self.shape + (4,))
 
 
+# Smallest |u| at which each term k >= 1 of the Phi' series exceeds 2**-56 of the first,
+# so a slice whose largest |u| is below _PHI_DERIVATIVE_NEEDS[k-1] needs no term past k-1.
+_PHI_DERIVATIVE_NEEDS = tuple(
+    float((2.0**-56 * abs(_PHI_DERIVATIVE_SERIES[0]) / abs(d)) ** (1.0 / k))
+    for k, d in enumerate(_PHI_DERIVATIVE_SERIES[1:], start=1))
+_EXPONENTS = np.arange(float(_PHI_DERIVATIVE_SERIES.size))
+# Powers of u for the series by one np.power call (about 10 ns per element) up to this many
+# elements, beyond it row by row (about 1 us per call).
+_POWER_CALL_LIMIT = 600
+
+
+def _is_scalar(value):
+    """True for a real number or a 0-d array (np.ndim is slow for the fit's inner loop)."""
+    return isinstance(value, (float, int, np.floating, np.integer)) or (
+        isinstance(value, np.ndarray) and value.ndim == 0)
+
+
+def _one_law(y0, a, b, c):
+    """(rate, a, b, c) of _Normalized for one parameter set, as floats; None where the
+    array code is needed (y0 <= 0, a rate beyond the float range, or invalid input)."""
+    if not (y0 > 0 and a >= 0 and b >= 0 and c >= 0):
+        return None
+    rate_c = c / y0
+    rate_a = a * y0  # Python floats give inf, not an exception, on overflow
+    rate = max(rate_c, b, rate_a)
+    if not rate < math.inf:
+        return None
+    if rate == 0:
+        rate = 1.0
+    return rate, rate_a / rate, b / rate, rate_c / rate
+
+
+def _one_law_constants(a, b, c):
+    """sigma, s and the normalized stop time of one normalized law (scalar
+    _discriminant_quarter and _normalized_stop_time)."""
+    g = math.sqrt(a) * math.sqrt(c)
+    sigma = (0.5 * b - g) * (0.5 * b + g)
+    s = math.sqrt(abs(sigma))
+    if c <= 0:
+        return sigma, s, math.inf
+    k = c + 0.5 * b
+    tau_stop = 1.0 / k
+    if sigma > 0:
+        # 1 - z written without cancellation: b/2 - s = a*c/(b/2 + s).
+        one_minus_z = (c + a * c / (0.5 * b + s)) / k
+        if one_minus_z == 0:
+            return sigma, s, math.inf  # a Coulomb term too faint to stop within floats
+        result = 0.5 * math.log1p(2.0 * (s * tau_stop) / one_minus_z) / s
+    elif sigma < 0:
+        result = math.atan(s * tau_stop) / s
+    else:
+        result = tau_stop
+    return sigma, s, result if result == result else math.inf
+
+
+class _SortedTerms:
+    """_LawTerms for one parameter set at sorted times >= 0: a fit's case, made fast.
+
+    Normalized time grows with t, so each branch of tau (series, direct, exponential
+    form, stopped) covers one contiguous slice of the times: every branch works on a view,
+    without masks, and the constants are computed once as Python floats. The formulas are
+    those of _LawTerms, with tau = tanh(s*theta)/s or tan(s*theta)/s in place of
+    theta*Phi(u) (the same function), so that the series is needed for Phi' only. On the
+    fit's 10 to 1000 points each numpy call costs more than its arithmetic: the code is
+    written to make few of them.
+    """
+
+    def __init__(self, t, shape, y0, law):
+        rate, a, b, c = law
+        sigma, s, theta_stop = _one_law_constants(a, b, c)
+        n = t.size
+        if float(t[-1]) * rate <= _MAX_NORMALIZED_TIME:
+            theta = t * rate
+        else:
+            with np.errstate(over="ignore"):
+                theta = np.minimum(t * rate, _MAX_NORMALIZED_TIME)
+        # Running while t < t_stop, with t_stop exactly what stop_time() returns.
+        n_run = n if theta_stop == math.inf else int(t.searchsorted(theta_stop / rate))
+        theta = theta[:n_run]
+        if theta_stop < math.inf:
+            theta = np.minimum(theta, theta_stop)
+        # Branch boundaries: |u| = |sigma|*theta**2 < _SERIES_LIMIT, s*theta >= 1.
+        if sigma == 0:
+            n_series = n_exp = n_run
+        else:
+            n_series = int(theta.searchsorted(math.sqrt(_SERIES_LIMIT / abs(sigma))))
+            n_exp = (int(theta.searchsorted(_EXPONENTIAL_FORM_LIMIT / s)) if sigma > 0
+                     else n_run)
+        k = c + 0.5 * b
+        m = a + 0.5 * b
+
+        dtau = np.empty(n_run)  # d tau / d sigma = theta**3 * Phi'(u)
+        if sigma == 0:  # Phi(0) = 1, Phi'(0) = -1/3
+            tau = theta
+            np.multiply(theta * theta, theta * _PHI_DERIVATIVE_SERIES[0], out=dtau)
+        else:
+            z = s * theta
+            trig = np.tanh(z) if sigma > 0 else np.tan(z)  # before tan's pole: see stop_time
+            tau = trig / s
+        if sigma != 0 and n_series:  # the series, with only the terms that matter
+            theta_s = theta[:n_series]
+            square = theta_s * theta_s
+            u = sigma * square
+            degree = bisect.bisect_right(_PHI_DERIVATIVE_NEEDS, abs(float(u[-1])))
+            if n_series * degree <= _POWER_CALL_LIMIT:
+                powers = u ** _EXPONENTS[:degree + 1, None]
+            else:
+                powers = np.empty((degree + 1, n_series))
+                powers[0] = 1.0
+                for j in range(1, degree + 1):
+                    np.multiply(powers[j - 1], u, out=powers[j])
+            np.multiply(square * theta_s, _PHI_DERIVATIVE_SERIES[:degree + 1] @ powers,
+                        out=dtau[:n_series])
+        if n_exp > n_series:  # the closed form of Phi' where |u| >= _SERIES_LIMIT
+            zd = z[n_series:n_exp]
+            td = trig[n_series:n_exp]
+            numerator = zd * (1.0 - td * td) - td if sigma > 0 else td - zd * (1.0 + td * td)
+            np.multiply(numerator, 0.5 / (s * s * s), out=dtau[n_series:n_exp])
+        denominator = 1.0 + tau * m
+        eta = np.zeros(n)
+        running = eta[:n_run]
+        np.divide(1.0 - tau[:n_exp] * k, denominator[:n_exp], out=running[:n_exp])
+        if n_run > n_exp:  # s*theta >= 1: written with E = exp(-2z), so tails keep digits
+            zf = z[n_exp:]
+            e = np.exp(-2.0 * zf)
+            one_plus_e = 1.0 + e
+            sech2 = 4.0 * e / (one_plus_e * one_plus_e)
+            np.multiply(trig[n_exp:] - zf * sech2, -0.5 / (s * s * s), out=dtau[n_exp:])
+            h = 0.5 * b + s
+            np.divide(e * (s + k) - c * (1.0 + a / h), (s + m) - e * (a * (1.0 + c / h)),
+                      out=running[n_exp:])
+        np.maximum(running, 0.0, out=running)
+        self.shape, self.y0, self.rate, self.a, self.b, self.c = shape, y0, rate, a, b, c
+        self.n_run, self.n_exp, self.theta, self.k, self.m = n_run, n_exp, theta, k, m
+        self.tau, self.dtau, self.denominator, self.eta = tau, dtau, denominator, eta
+
+    def amplitude(self):
+        y = (self.y0 * self.eta).reshape(self.shape)
+        return y[()] if y.ndim == 0 else y
+
+    def jacobian(self):
+        a, b, c, k, m = self.a, self.b, self.c, self.k, self.m
+        n_run, n_exp = self.n_run, self.n_exp
+        eta = self.eta[:n_run]
+        # The formulas of _LawTerms.jacobian as one matrix product: rows of the basis
+        # B = [S, T, eta*T, 1, eta, eta**2] with T = tau/(1 + tau*M) and S = (d tau/d sigma)
+        # * (K + eta*M)/(1 + tau*M) (<= 0) combine into dy/d(y0, a, b, c) in normalized units.
+        basis = np.empty((6, n_run))
+        np.divide(self.tau, self.denominator, out=basis[1])
+        np.multiply(eta, m, out=basis[0])
+        basis[0] += k
+        basis[0] *= self.dtau
+        basis[0] /= self.denominator
+        np.multiply(eta, basis[1], out=basis[2])
+        basis[3] = 1.0
+        basis[4] = eta
+        np.multiply(eta, eta, out=basis[5])
+        # dy/dy0 = P(y)/P(y0); after normalizing a + b + c >= 1 unless there is no damping.
+        total = a + b + c
+        y0_row = (0.0, 0.0, 0.0, c / total, b / total, a / total) if total > 0 else (
+            0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
+        combination = np.array([y0_row,
+                                (c, 0.0, -1.0, 0.0, 0.0, 0.0),
+                                (-0.5 * b, -0.5, -0.5, 0.0, 0.0, 0.0),
+                                (a, -1.0, 0.0, 0.0, 0.0, 0.0)])
+        jacobian = np.empty((4, self.eta.size))
+        np.matmul(combination, basis, out=jacobian[:, :n_run])
+        jacobian[:, n_run:] = 0.0
+        if n_run > n_exp:
+            # Where s*theta >= 1: the time-scaling identity a*dy/da + b*dy/db + c*dy/dc
+            # = -t*P(y) gives dy/db without the cancellation of the formula above.
+            d_y0, d_a, d_b, d_c = jacobian[:, n_exp:n_run]
+            rate_eta = c + b * basis[4, n_exp:] + a * basis[5, n_exp:]
+            np.divide(rate_eta * self.theta[n_exp:] + c * d_c + a * d_a, -b, out=d_b)
+        # Back from normalized units, in the order of _LawTerms.jacobian.
+        y0, rate = self.y0, self.rate
+        y0_per_rate = y0 / rate
+        factors = (y0_per_rate * y0, y0_per_rate, 1.0 / rate)
+        if max(factors) <= 1e150 and float(np.abs(jacobian).max()) <= 1e150:  # no overflow
+            jacobian[1:] *= np.array(factors)[:, None]
+        else:
+            d_a, d_b, d_c = jacobian[1:]
+            with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+                # An infinite factor must not turn an exact zero into NaN.
+                np.multiply(d_a, y0_per_rate, out=d_a, where=d_a != 0)
+                d_a *= y0
+                d_b *= y0
+                d_b /= rate
+                d_c /= rate
+        return jacobian.T.reshape(self.shape + (4,))
+
+
+def _law_terms(t, y0, a, b, c):
+    """The law's terms: _SortedTerms where it applies (one parameter set, y0 > 0, sorted
+    times >= 0), _LawTerms otherwise (parameter arrays, unsorted times, extreme rates)."""
+    if _is_scalar(y0) and _is_scalar(a) and _is_scalar(b) and _is_scalar(c):
+        times = np.asarray(t, dtype=float)
+        flat = times.ravel()
+        if flat.size and flat[0] >= 0 and (flat.size == 1 or (flat[1:] >= flat[:-1]).all()):
+            law = _one_law(float(y0), float(a), float(b), float(c))
+            if law is not None:
+                return _SortedTerms(flat, times.shape, float(y0), law)
+    return _LawTerms(t, y0, a, b, c)
+
+
 def amplitude(t, y0, a, b, c):
     """Amplitude y(t) of the modified Coulomb law (Handbook Eq. 20.59, stable form).
 
@@ -315,7 +530,7 @@ def amplitude(t, y0, a, b, c):
     overflow or NaN for finite non-negative inputs. Relative accuracy is a few ulp except
     close to the stop time, where y -> 0 and the absolute error stays about eps*y0.
     """
-    return _LawTerms(t, y0, a, b, c).amplitude()
+    return _law_terms(t, y0, a, b, c).amplitude()
 
 
 def amplitude_jacobian(t, y0, a, b, c):
@@ -335,13 +550,23 @@ def amplitude_jacobian(t, y0, a, b, c):
     cancellation. dy/db comes from the tau form where s*t < 1 and otherwise from the
     time-scaling identity a*dy/da + b*dy/db + c*dy/dc = -t*P(y).
     """
-    return _LawTerms(t, y0, a, b, c).jacobian()
+    return _law_terms(t, y0, a, b, c).jacobian()
 
 
 def amplitude_and_jacobian(t, y0, a, b, c):
     """``(amplitude(...), amplitude_jacobian(...))`` from one evaluation of the law."""
-    terms = _LawTerms(t, y0, a, b, c)
+    terms = _law_terms(t, y0, a, b, c)
     return terms.amplitude(), terms.jacobian()
+
+
+def amplitude_terms(t, y0, a, b, c):
+    """The law evaluated once, its Jacobian computed only on demand.
+
+    Returns an object whose ``amplitude()`` and ``jacobian()`` give what :func:`amplitude`
+    and :func:`amplitude_jacobian` return. A least-squares solver needs the Jacobian only
+    at the steps it accepts, and the residuals at every trial step.
+    """
+    return _law_terms(t, y0, a, b, c)
 
 
 def decay_rate(y, a, b, c):
@@ -460,12 +685,14 @@ def power_law_jacobian(t, y0, k, n):
     d_y0 = (y / y0) / one_plus_x
     d_k = -y * (y0**epsilon * t) / one_plus_x
     # d/d(epsilon) of log1p(eps*w)/eps at fixed w = [x/(1+x) - log1p(x)]/eps**2, by series
-    # where x is small: sum_{j>=2} (-1)**(j+1) * (1 - 1/j) * x**j / eps**2.
+    # where x is small: sum_{j>=2} (-1)**(j+1) * (1 - 1/j) * x**(j-2) * w**2 (no power of
+    # w alone that could overflow; other times are masked out of the series).
     small = np.abs(x) < 0.05
     j = np.arange(2, 16)
+    x_small, w_small = np.where(small, x, 0.0), np.where(small, w, 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        series = np.sum(((-1.0) ** (j + 1) * (1 - 1 / j))
-                        * (epsilon[..., None] ** (j - 2)) * (w[..., None] ** j), axis=-1)
+        series = w_small**2 * np.sum(((-1.0) ** (j + 1) * (1 - 1 / j))
+                                     * x_small[..., None] ** (j - 2), axis=-1)
         direct = (x / one_plus_x - np.log1p(x)) / epsilon**2
     d_log_fixed_w = np.where(small, series, direct)
     d_log = d_log_fixed_w + w * np.log(y0) / one_plus_x
