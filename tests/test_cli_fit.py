@@ -283,3 +283,30 @@ def test_public_names_are_reexported_lazily():
     assert "fit_decay" in mcfit.__all__
     with pytest.raises(AttributeError):
         mcfit.no_such_name  # noqa: B018
+
+
+def test_a_record_with_the_time_column_last_is_fitted(runner, tmp_path, rng):
+    record = _write_record(tmp_path / "run.csv", rng)
+    lines = [",".join(reversed(line.split(","))) for line in record.read_text().splitlines()]
+    swapped = tmp_path / "x_then_t.csv"
+    swapped.write_text("\n".join(lines) + "\n")
+    result = runner.invoke(cli, [str(swapped), "--format", "json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["columns"] == {"time": "t", "signal": "x"} and data["model"] == "abc"
+
+
+@pytest.mark.parametrize("output_format", ["text", "json", "csv"])
+def test_each_job_formats_only_the_chosen_output(tmp_path, rng, output_format):
+    from mcfit import batch
+
+    record = str(_write_record(tmp_path / "run.csv", rng))
+    options = batch.FitOptions(output_format=output_format)
+    [result] = batch.run_jobs([record], options, [None])
+    assert result.status == "ok"
+    if output_format == "json":
+        assert json.loads(result.output)["source"] == record
+    elif output_format == "csv":
+        assert next(csv.reader(io.StringIO(result.output)))[:3] == [record, "ok", "abc"]
+    else:
+        assert result.output.startswith(f"mcfit report: {record}\n")

@@ -184,12 +184,61 @@ def test_missing_term_shows_as_correlated_residuals(rng):
 @pytest.mark.parametrize("t, y, message", [
     ([0, 1, 2], [3, 2, 1], "only 3 turning points"),
     ([0, 1, 1, 2], [3, 2, 1.5, 1], "strictly increasing"),
-    ([0, 1, 2, 3], [3, 2, 0, 1], "must be > 0"),
+    ([0, 1, 2, 3], [0, -1, -2, -0.5], "no turning-point amplitude is > 0"),
+    ([0, 1, 2, 3], [0, 0, 0, 0], "no turning-point amplitude is > 0"),
     ([0, 1, 2, 3], [3, 2, np.nan, 1], "NaN"),
+    ([0, 1, 2, 3], [3e31, 2, -1, 1], "rescale the signal"),
 ])
 def test_invalid_turning_points_raise_a_clear_error(t, y, message):
     with pytest.raises(FitError, match=message):
         fit_decay(np.array(t, float), np.array(y, float))
+
+
+def _noisy_tail(noise_rng, y0, a, b, c, period, duration, noise):
+    """Signed amplitudes: the law plus Gaussian noise, kept where the envelope is in the noise."""
+    t = np.arange(0.0, duration, period / 2)
+    return t, decay.amplitude(t, y0, a, b, c) + noise_rng.normal(0.0, noise, t.size)
+
+
+@pytest.mark.parametrize("y0, a, b, c, period, duration, noise, expected", [
+    (1.0, 0.0, 0.05, 0.0, 1.0, 150.0, 3e-3, "b"),
+    (2.0, 0.05, 0.05, 0.0, 0.5, 150.0, 2e-3, "ab"),
+])
+def test_amplitudes_down_to_and_below_zero_in_the_noise(y0, a, b, c, period, duration, noise,
+                                                        expected, rng):
+    """The end of a record where the envelope is within the noise: zeros and negative values
+    are kept (dropping them would bias the fit towards a slower decay)."""
+    t, y = _noisy_tail(rng, y0, a, b, c, period, duration, noise)
+    y[-3] = 0.0
+    assert np.sum(y < 0) > 10
+    result = fit_decay(t, y, np.full(t.size, noise), period=period)
+    assert result.status == "ok"
+    assert result.model == expected
+    for key, true in zip("abc", (a, b, c)):
+        if true:
+            error = result.stderr[key]
+            assert abs(result.values[key] - true) < 5 * error, (key, result.values[key], error)
+            assert error < 0.05 * true
+    assert np.all(result.y_fit >= 0)
+    # The reduced chi-square of a good fit with the right noise is about 1.
+    assert 0.7 < result.reduced_chi_square < 1.4
+
+
+def test_non_positive_tail_with_forced_models_and_bootstrap(rng):
+    t, y = _noisy_tail(rng, 1.0, 0.0, 0.05, 0.0, 1.0, 150.0, 3e-3)
+    assert np.any(y <= 0)
+    boot = fit_decay(t, y, period=1.0, model="b", bootstrap=30, rng=rng)
+    assert boot.bootstrap["n"] == 30  # no draw is dropped for holding values <= 0
+    low, high = boot.bootstrap["interval_95"]["b"]
+    assert low < boot.values["b"] < high
+    assert high - low == pytest.approx(2 * 1.96 * boot.stderr["b"], rel=0.5)
+    power = fit_decay(t, y, period=1.0, model="power")
+    assert power.status == "ok"
+    assert power.power_law["n"] == pytest.approx(1.0, abs=0.1)
+    # A first amplitude <= 0 as well: the largest one still sets the scale.
+    y[0] = -1e-3
+    assert fit_decay(t, y, period=1.0).status == "ok"
+    assert fit_decay(t, y, period=1.0, model="power").status == "ok"
 
 
 def test_result_serialises_to_plain_data(rng):

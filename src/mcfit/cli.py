@@ -8,7 +8,6 @@ stderr and exit with the error's code; anything else is a bug and keeps its trac
 
 from __future__ import annotations
 
-import difflib
 import math
 import os
 import sys
@@ -48,10 +47,14 @@ class McfitGroup(click.Group):
         group_options = {"-h", "--help", "--version"}
         if (self.default_command is not None and args and args[0] not in group_options
                 and args[0] not in self.commands):
-            near = difflib.get_close_matches(args[0], list(self.commands), n=1, cutoff=0.75)
-            if near and args[0] != "-" and not os.path.exists(args[0]):
-                raise click.UsageError(f"no command or file {args[0]!r}; did you mean "
-                                       f"'mcfit {near[0]}'?")
+            if args[0] != "-" and not os.path.exists(args[0]):
+                import difflib  # only for a name that is neither a command nor a file
+
+                near = difflib.get_close_matches(args[0], list(self.commands), n=1,
+                                                 cutoff=0.75)
+                if near:
+                    raise click.UsageError(f"no command or file {args[0]!r}; did you mean "
+                                           f"'mcfit {near[0]}'?")
             args = [self.default_command, *args]
         return super().parse_args(ctx, args)
 
@@ -345,12 +348,11 @@ def _write_results(results, sources, output_format, output):
                 failures += 1
                 click.echo(f"Error: {result.plot_error}", err=True)
             if output_format == "json":
-                stream.write(result.json_line + "\n" if total > 1
-                             else _pretty_json(result.json_line))
+                stream.write(result.output + "\n" if total > 1 else _pretty_json(result.output))
             elif output_format == "csv":
-                stream.write(result.csv_row)
+                stream.write(result.output)
             else:
-                stream.write(result.text + ("\n" if done < total else ""))
+                stream.write(result.output + ("\n" if done < total else ""))
             stream.flush()
             if progress is not None:
                 progress.update(1)

@@ -3,7 +3,9 @@
 The fit works on turning-point amplitudes ``y_k`` at times ``t_k`` (THEORY.md section 5).
 Internally time is measured from the first point in units of the record's span and
 amplitudes in units of the largest one, so a record in volts or microvolts, seconds or hours
-gives the same relative result after the same iterations. numpy/scipy/lmfit only, no I/O.
+gives the same relative result after the same iterations. The seven candidate models are
+ranked with scipy's least-squares solvers directly (:func:`_rank_subset`); the chosen one is
+then fitted with lmfit, started there. numpy/scipy/lmfit only, no I/O.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ from dataclasses import asdict, dataclass, field
 
 import lmfit
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize
 
 from mcfit import decay
 from mcfit.errors import FitError
@@ -35,6 +37,7 @@ DEGENERATE_CORRELATION = 0.98
 MIN_POINTS = 4
 # Column of each parameter in decay.amplitude_jacobian.
 _COLUMN = {"y0": 0, "a": 1, "b": 2, "c": 3}
+_NAMES = ("y0", "a", "b", "c")
 # Amplitudes and times beyond these cannot be squared and multiplied in float64.
 _LARGEST = 1e30
 _SMALLEST = 1e-30
@@ -42,6 +45,9 @@ _SMALLEST = 1e-30
 # parameters, and far enough above chi-square's rounding floor (~1e-15) that the same
 # record in other units stops after the same iterations.
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
+# Levenberg-Marquardt evaluations allowed for ranking a candidate before the bounded solver
+# takes over (see _rank_subset): candidates whose optimum is inside the bounds need 4 to 13.
+_RANKING_EVALUATIONS = 25
 
 
 @dataclass(frozen=True)
@@ -55,6 +61,8 @@ class Candidate:
     bic: float
     success: bool
     values: dict
+    # Evaluations of the law by the solvers; 0 when the optimum is a smaller model's (a
+    # term the record does not want stays at 0, see _rank_subset).
     evaluations: int
 
     def to_dict(self) -> dict:
@@ -134,6 +142,21 @@ class _Scaled:
         self.t = (t - self.t0) / self.time_unit
         self.y = y / self.amplitude_unit
         self.weights = self.amplitude_unit / sigma
+        # The solvers see the residuals over the largest weight. Chi-square's scale, unlike
+        # its relative changes, depends on the units (sigma is 1 U when not given), and
+        # scipy's gtol is an absolute threshold: a solver started close to its optimum would
+        # otherwise stop after a different number of steps in microvolts than in volts.
+        self.weight_scale = float(np.max(self.weights))
+        self.solver_weights = self.weights / self.weight_scale
+        self.design = None  # the reduced least-squares problem of _starting_values
+
+    def with_amplitudes(self, y):
+        """The same record in the same internal units, with amplitudes ``y`` (physical)."""
+        other = object.__new__(_Scaled)
+        other.__dict__.update(self.__dict__)
+        other.y = y / self.amplitude_unit
+        other.design = None
+        return other
 
     def to_physical(self, values):
         """(y0, a, b, c) in internal units -> physical units."""
@@ -155,11 +178,16 @@ def _starting_values(scaled, terms):
     amplify the amplitude noise.
     """
     t, y, w = scaled.t, scaled.y, scaled.weights
-    int_y = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t))])
-    int_y2 = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] ** 2 + y[:-1] ** 2) * np.diff(t))])
-    columns = {"a": -int_y2, "b": -int_y, "c": -t}
-    design = np.column_stack([np.ones_like(t)] + [columns[k] for k in terms])
-    solution, _ = optimize.nnls(design * w[:, None], y * w)
+    if scaled.design is None:  # the same for every model: reduced once per record
+        int_y = np.concatenate([[0.0], np.cumsum(0.5 * (y[1:] + y[:-1]) * np.diff(t))])
+        int_y2 = np.concatenate([[0.0],
+                                 np.cumsum(0.5 * (y[1:] ** 2 + y[:-1] ** 2) * np.diff(t))])
+        # With [A | y*w] = Q R, |A x - y*w| differs from |R[:4, :4] x - R[:4, 4]| by a
+        # constant: the same solutions, from a 4-row problem (long records fit faster).
+        scaled.design = np.linalg.qr(np.column_stack([np.ones_like(t), -int_y2, -int_y, -t,
+                                                      y]) * w[:, None], mode="r")[:4]
+    design = scaled.design[:, [_COLUMN[k] for k in ("y0",) + tuple(terms)]]
+    solution, _ = optimize.nnls(design, scaled.design[:, 4])
     start = {"y0": solution[0], "a": 0.0, "b": 0.0, "c": 0.0}
     start.update(zip(terms, solution[1:]))
     # A zero start sits on the bound where the Jacobian may vanish; nudge it inside.
@@ -168,7 +196,7 @@ def _starting_values(scaled, terms):
         if k in terms and start[k] <= 0:
             start[k] = floor * rate_scale
     if start["y0"] <= 0:
-        start["y0"] = y[0]
+        start["y0"] = y[0] if y[0] > 0 else 1.0  # 1 is the largest amplitude
     return start
 
 
@@ -187,45 +215,230 @@ def _quiet_lmfit_errorbars():
         yield
 
 
-def _fit_subset(scaled, terms):
-    """Least-squares fit of one model in internal units; returns (values, covar, chi2, ok)."""
-    start = _starting_values(scaled, terms)
-    params = lmfit.Parameters()
-    params.add("y0", value=start["y0"], min=0.0)
-    for k in TERMS:
-        params.add(k, value=start[k], min=0.0, vary=k in terms)
+def _free_parameters(terms):
+    """Names and Jacobian columns of the free parameters of a model."""
     free = ["y0"] + list(terms)
-    t, y, w = scaled.t, scaled.y, scaled.weights
-    free_columns = [_COLUMN[k] for k in free]
-    last = {}  # the law at the last parameters: scipy asks for the Jacobian where it just
-    # evaluated the residuals, so one evaluation serves both
+    return free, [_COLUMN[k] for k in free]
 
-    def evaluate(p):
-        key = tuple(p[k].value for k in ("y0", "a", "b", "c"))
-        if last.get("key") != key:
-            last["key"] = key
-            last["value"] = decay.amplitude_and_jacobian(t, *key)
-        return last["value"]
+
+class _Problem:
+    """One model's least-squares problem in internal units, in its free parameters.
+
+    The solvers ask for the Jacobian where they just evaluated the residuals, so the law is
+    evaluated once per parameter vector, and its Jacobian only where asked for (not at
+    rejected trial steps). Residuals and Jacobian use the solver weights; chi-square and
+    covariance, the weights of the record.
+    """
+
+    def __init__(self, scaled, terms):
+        self.t, self.y = scaled.t, scaled.y
+        self.weights, self.solver_weights = scaled.weights, scaled.solver_weights
+        # Chi-square with the record's weights over that with the solver weights.
+        self.chi_square_scale = scaled.weight_scale**2
+        self.free, self.columns = _free_parameters(terms)
+        self._key = self._law = self._jacobian = None
+
+    def values(self, free_values):
+        """(y0, a, b, c) with the absent terms 0."""
+        values = np.zeros(4)
+        values[self.columns] = free_values
+        return values
+
+    def law(self, free_values):
+        values = [0.0, 0.0, 0.0, 0.0]
+        for column, value in zip(self.columns, free_values):
+            values[column] = float(value)
+        key = tuple(values)
+        if key != self._key:
+            self._key, self._law = key, decay.amplitude_terms(self.t, *key)
+            self._jacobian = None
+        return self._law
+
+    def law_jacobian(self, free_values):
+        """dy/d(y0, a, b, c), unweighted (computed once per parameter vector)."""
+        law = self.law(free_values)
+        if self._jacobian is None:
+            self._jacobian = law.jacobian()
+        return self._jacobian
+
+    def residual(self, free_values):
+        return (self.law(free_values).amplitude() - self.y) * self.solver_weights
+
+    def jacobian(self, free_values):
+        return self.law_jacobian(free_values)[:, self.columns] * self.solver_weights[:, None]
+
+    def chi_square(self, free_values):
+        return float(np.sum(((self.law(free_values).amplitude() - self.y) * self.weights) ** 2))
+
+    def covariance(self, free_values):
+        """Unscaled covariance (J^T J)^-1 of the free parameters (times chi2/dof later)."""
+        jacobian = self.law_jacobian(free_values)[:, self.columns] * self.weights[:, None]
+        try:
+            return np.linalg.pinv(jacobian.T @ jacobian)
+        except np.linalg.LinAlgError:
+            return None
+
+    def gradient(self, free_values):
+        """Cosines between the residuals and the Jacobian column of each of y0, a, b, c
+        (free or not): the chi-square gradient, normalized as MINPACK's gtol test does."""
+        w = self.solver_weights
+        jacobian = self.law_jacobian(free_values) * w[:, None]
+        residual = (self.law(free_values).amplitude() - self.y) * w
+        norms = np.sqrt(np.sum(jacobian**2, axis=0)) * math.sqrt(float(residual @ residual))
+        return (jacobian.T @ residual) / np.where(norms > 0, norms, 1.0)
+
+
+def _bounded_least_squares(scaled, terms, start):
+    """scipy's trust-region-reflective fit with the bounds [0, inf): the problem and settings
+    of :func:`_fit_subset` (analytic Jacobian, x_scale="jac", the same tolerances and
+    evaluation limit) without lmfit. Returns (values, chi_square, success, evaluations)."""
+    problem = _Problem(scaled, terms)
+    result = optimize.least_squares(problem.residual, start[problem.columns],
+                                    jac=problem.jacobian, bounds=(0.0, np.inf), method="trf",
+                                    x_scale="jac", max_nfev=4000 * (len(problem.free) + 1),
+                                    **_TOLERANCES)
+    return (problem.values(result.x), problem.chi_square(result.x), bool(result.success),
+            int(result.nfev))
+
+
+class _LeftTheBounds(Exception):
+    """Levenberg-Marquardt tried a parameter < 0, where the law is not defined."""
+
+
+def _levenberg_marquardt(problem, start):
+    """MINPACK's Levenberg-Marquardt (through scipy) on ``problem`` from ``start``, in the
+    same coordinates as the bounded solver, abandoned if it tries a parameter < 0.
+
+    Returns (free values or None, lowest chi-square seen (record weights), evaluations).
+    The free values are given only if a MINPACK convergence test passed inside the bounds.
+    """
+    seen = {"evaluations": 0, "lowest": math.inf}
+    scale = problem.chi_square_scale
+
+    def residual(x):
+        seen["evaluations"] += 1
+        if min(x) < 0:
+            raise _LeftTheBounds
+        r = problem.residual(x)
+        seen["lowest"] = min(seen["lowest"], float(r @ r) * scale)
+        return r
+
+    def jacobian(x):
+        if min(x) < 0:
+            raise _LeftTheBounds
+        return problem.jacobian(x)
+
+    try:
+        with warnings.catch_warnings():
+            # leastsq's own covariance (unused here) may overflow far from a sensible optimum.
+            warnings.filterwarnings("ignore", category=RuntimeWarning,
+                                    module=r"scipy\.optimize\._minpack_py")
+            x, _, _, _, status = optimize.leastsq(
+                residual, start[problem.columns], Dfun=jacobian, full_output=True,
+                maxfev=_RANKING_EVALUATIONS, **_TOLERANCES)
+    except _LeftTheBounds:
+        return None, seen["lowest"], seen["evaluations"]
+    converged = status in (1, 2, 3, 4) and min(x) > 0
+    return (x if converged else None), seen["lowest"], seen["evaluations"]
+
+
+def _rank_subset(scaled, terms, ranked):
+    """Fit one candidate well enough to rank and report it.
+
+    Returns (values, chi_square, success, evaluations, gradient) in internal units, with
+    ``gradient`` that of chi-square in y0, a, b, c at the solution (up to a factor > 0).
+    ``ranked`` holds these for the models fitted so far, smaller ones first.
+
+    The bounded trust-region solver spends about 0.1 ms of its own per iteration, far more
+    than the law costs; MINPACK's Levenberg-Marquardt almost nothing. Started where the
+    bounded solver starts and in the same coordinates, it heads for the same optimum while
+    the parameters stay > 0, and most candidates converge so. A candidate whose optimum
+    lies on the bound 0 (a term the record does not want) makes it step below 0; that
+    optimum is then a smaller model's, when every term at 0 there has a chi-square gradient
+    pointing outward (the Kuhn-Tucker conditions) and nothing lower was met on the way.
+    Otherwise the bounded solver runs as it always did, from the linear estimate.
+    """
+    smaller = [ranked[m] for m in ranked if len(m) == len(terms) - 1 and set(m) <= set(terms)]
+    best_smaller = min(smaller, key=lambda fit: fit[1], default=None)
+    problem = _Problem(scaled, terms)
+    start = _starting_values(scaled, terms)
+    start = np.array([start[k] for k in _NAMES])
+    free_values, lowest, evaluations = _levenberg_marquardt(problem, start)
+    if free_values is not None:
+        chi_square = problem.chi_square(free_values)
+        if best_smaller is None or chi_square <= best_smaller[1]:
+            return (problem.values(free_values), chi_square, True, evaluations,
+                    problem.gradient(free_values))
+    elif best_smaller is not None and lowest >= best_smaller[1]:
+        values, chi_square, ok, _, gradient = best_smaller
+        at_bound = [_COLUMN[k] for k in terms if values[_COLUMN[k]] == 0]
+        if all(gradient[column] >= 0 for column in at_bound):
+            return values.copy(), chi_square, ok, evaluations, gradient
+    values, chi_square, ok, more = _bounded_least_squares(scaled, terms, start)
+    evaluations += more
+    if best_smaller is not None and best_smaller[1] < chi_square:  # a lower point to go on from
+        values, chi_square, ok, more = _bounded_least_squares(scaled, terms, best_smaller[0])
+        evaluations += more
+    return values, chi_square, ok, evaluations, problem.gradient(values[problem.columns])
+
+
+def _gauss_newton_refined(scaled, terms, values):
+    """``values`` (a ranking solution) after up to two Gauss-Newton steps, and the number of
+    evaluations of the law they took.
+
+    Along a direction the record hardly determines (correlated parameters, e.g. a, b and c
+    together), chi-square changes by less than its rounding error over a range of about
+    1e-9 of the values: a solver that compares chi-square values stops anywhere in it,
+    where its path (the record's units, say) leads. A Gauss-Newton step solves for the
+    optimum instead, to about eps times the condition number. A step is kept only inside
+    the bounds and if chi-square does not rise beyond rounding.
+    """
+    problem = _Problem(scaled, terms)
+    x = values[problem.columns]
+    chi_square = problem.chi_square(x)
+    evaluations = 0
+    for _ in range(2):
+        step = np.linalg.lstsq(problem.jacobian(x), -problem.residual(x), rcond=None)[0]
+        trial = x + step
+        if not np.all(trial > 0):
+            break
+        trial_chi_square = problem.chi_square(trial)
+        evaluations += 1
+        if not trial_chi_square <= chi_square * (1.0 + 1e-12):
+            break
+        x, chi_square = trial, trial_chi_square
+    return problem.values(x), evaluations
+
+
+def _fit_subset(scaled, terms, start):
+    """lmfit fit of one model in internal units from ``start`` (values of y0, a, b, c);
+    returns (values, covar, free, chi2, ok, evaluations)."""
+    start = dict(zip(_NAMES, start))
+    problem = _Problem(scaled, terms)
+    free = problem.free
+    params = lmfit.Parameters()
+    for k in free:  # absent terms are 0: no need for lmfit to carry them
+        params.add(k, value=start[k], min=0.0)
 
     def residual(p):
-        return (evaluate(p)[0] - y) * w
+        return problem.residual([p[k].value for k in free])
 
     def jacobian(p):
-        return evaluate(p)[1][:, free_columns] * w[:, None]
+        return problem.jacobian([p[k].value for k in free])
 
     minimizer = lmfit.Minimizer(residual, params)
     with _quiet_lmfit_errorbars():
         result = minimizer.minimize(method="least_squares", jac=jacobian, x_scale="jac",
                                     **_TOLERANCES)
-    values = np.array([result.params[k].value for k in ("y0", "a", "b", "c")])
-    chi_square = float(np.sum(residual(result.params) ** 2))
-    # Unscaled covariance from the Jacobian at the solution (scaled by chi2/dof later).
-    jac = jacobian(result.params)
-    try:
-        covar = np.linalg.pinv(jac.T @ jac)
-    except np.linalg.LinAlgError:
-        covar = None
-    return values, covar, free, chi_square, bool(result.success), int(result.nfev)
+    free_values = [result.params[k].value for k in free]
+    return (problem.values(free_values), problem.covariance(free_values), free,
+            problem.chi_square(free_values), bool(result.success), int(result.nfev))
+
+
+def _candidate(scaled, name, values, chi_square, ok, evaluations, n_points):
+    aicc, bic = _information_criteria(chi_square, n_points, len(name) + 1)
+    physical = dict(zip(_NAMES, map(float, scaled.to_physical(values))))
+    return Candidate(name, len(name) + 1, chi_square, aicc, bic, ok, physical, evaluations)
 
 
 def _information_criteria(chi_square, n_points, n_params):
@@ -243,7 +456,8 @@ def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points):
     statistic = n_points * math.log(max(chi_square_without, 1e-300) / max(chi_square_with, 1e-300))
     if statistic <= 0:
         return 1.0
-    return 0.5 * float(stats.chi2.sf(statistic, 1))
+    # chi2(1).sf(x) = erfc(sqrt(x/2)), without scipy.stats' per-call cost.
+    return 0.5 * math.erfc(math.sqrt(0.5 * statistic))
 
 
 def _lag_one_autocorrelation(residuals):
@@ -256,7 +470,8 @@ def _q_with_stderr(t_scaled, values, covar_physical, free, scaled, omega):
     """Q at each turning point and its standard error by the delta method."""
     y0, a, b, c = values
     t_phys = t_scaled * scaled.time_unit
-    y = decay.amplitude(t_phys, y0, a, b, c)
+    law = decay.amplitude_terms(t_phys, y0, a, b, c)
+    y = law.amplitude()
     q = decay.quality_factor(y, omega, a, b, c)
     if covar_physical is None:
         return q, None
@@ -266,7 +481,7 @@ def _q_with_stderr(t_scaled, values, covar_physical, free, scaled, omega):
         dq_dy = omega * (c - a * y**2) / denominator
         direct = {"a": -omega * y**3 / denominator, "b": -omega * y**2 / denominator,
                   "c": -omega * y / denominator, "y0": np.zeros_like(y)}
-        jac_y = decay.amplitude_jacobian(t_phys, y0, a, b, c)
+        jac_y = law.jacobian()
         gradient = np.column_stack([dq_dy * jac_y[:, _COLUMN[k]] + direct[k] for k in free])
         variance = np.einsum("ij,jk,ik->i", gradient, covar_physical, gradient)
         q_stderr = np.sqrt(np.maximum(variance, 0.0))
@@ -282,7 +497,9 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
     t : array_like, shape (n,)
         Turning-point times (s) or cycle numbers (``domain="cycle"``), increasing.
     y : array_like, shape (n,)
-        Turning-point amplitudes about equilibrium, > 0 (signal units U).
+        Turning-point amplitudes about equilibrium (signal units U). The last ones may be
+        <= 0 where noise dominates (signed projections onto the crest phase scatter about
+        a small envelope); the largest must be > 0. The model itself stays >= 0.
     sigma : array_like, shape (n,), optional
         Standard deviation of each amplitude. Only relative weights are taken from it: the
         overall noise scale is always estimated from the residuals as well.
@@ -303,7 +520,8 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
     -------
     DecayFit
         ``status == "ok"``, or ``"error"`` with ``message`` when the fit itself failed.
-        Invalid input (too few points, non-positive amplitudes) raises :class:`FitError`.
+        Invalid input (too few points, no amplitude > 0, values beyond double precision)
+        raises :class:`FitError`.
     """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -316,16 +534,19 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
         raise FitError("turning points contain NaN or inf; remove them before fitting")
     if np.any(np.diff(t) <= 0):
         raise FitError("turning-point times must be strictly increasing")
-    if np.any(y <= 0):
-        raise FitError("turning-point amplitudes must be > 0 (measured about the equilibrium)")
-    # Squares and products of the coefficients must stay inside double precision.
-    for what, values, unit in (("amplitudes", y, "the signal"),
-                               ("times", np.abs(t[[0, -1]]), "the time")):
-        largest = float(np.max(values))
-        smallest = float(np.min(y)) if what == "amplitudes" else float(t[-1] - t[0])
-        if largest > _LARGEST or smallest < _SMALLEST:
-            raise FitError(f"turning-point {what} span {smallest:.3g} to {largest:.3g}, beyond "
-                           f"what mcfit fits in double precision (1e-30 to 1e30); rescale {unit}.")
+    if not np.max(y) > 0:
+        raise FitError("no turning-point amplitude is > 0 (amplitudes are measured about the "
+                       "equilibrium): there is no decay to fit")
+    # Squares and products of the coefficients must stay inside double precision. Amplitudes
+    # near 0 (or below: noise in the tail) are fine; the largest sets the scale.
+    largest = float(np.max(np.abs(y)))
+    if not _SMALLEST <= largest <= _LARGEST:
+        raise FitError(f"turning-point amplitudes reach {largest:.3g}, beyond what mcfit fits "
+                       "in double precision (1e-30 to 1e30); rescale the signal.")
+    largest, span = float(np.max(np.abs(t[[0, -1]]))), float(t[-1] - t[0])
+    if largest > _LARGEST or span < _SMALLEST:
+        raise FitError(f"turning-point times span {span:.3g} to {largest:.3g}, beyond what "
+                       "mcfit fits in double precision (1e-30 to 1e30); rescale the time.")
     if criterion not in CRITERIA:
         raise FitError(f"unknown criterion {criterion!r}; use one of {', '.join(CRITERIA)}")
     if domain not in ("time", "cycle"):
@@ -347,20 +568,19 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
 
     n = t.size
     fits = {}
-    candidates = []
+    candidates = {}
     # A forced model needs only itself and the models one term smaller (for the LRT).
     tried = MODELS if model is None else tuple(
         m for m in MODELS if m == model or (len(m) == len(model) - 1 and set(m) <= set(model)))
-    for name in tried:
-        values, covar, free, chi_square, ok, evaluations = _fit_subset(scaled, name)
-        fits[name] = (values, covar, free, chi_square, ok)
-        aicc, bic = _information_criteria(chi_square, n, len(free))
-        physical = dict(zip(("y0", "a", "b", "c"), map(float, scaled.to_physical(values))))
-        candidates.append(Candidate(name, len(free), chi_square, aicc, bic, ok, physical,
-                                    evaluations))
+    ranked = {}
+    for name in tried:  # smaller models first: _rank_subset starts from them
+        ranked[name] = _rank_subset(scaled, name, ranked)
+        values, chi_square, ok, evaluations, _ = ranked[name]
+        fits[name] = (values, None, _free_parameters(name)[0], chi_square, ok)
+        candidates[name] = _candidate(scaled, name, values, chi_square, ok, evaluations, n)
 
     warnings = []
-    by_score = {c.model: getattr(c, criterion) for c in candidates}
+    by_score = {c.model: getattr(c, criterion) for c in candidates.values()}
     if model is None:
         chosen = min(by_score, key=by_score.get)
         # Each kept term must also survive the boundary likelihood-ratio test.
@@ -375,7 +595,13 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
             chosen = chosen.replace(weakest, "")
     else:
         chosen = model
-    values, covar, free, chi_square, ok = fits[chosen]
+    # The reported fit is lmfit's, started where the ranking stopped (refined): it
+    # converges at once.
+    start, refining = _gauss_newton_refined(scaled, chosen, fits[chosen][0])
+    values, covar, free, chi_square, ok, evaluations = _fit_subset(scaled, chosen, start)
+    fits[chosen] = (values, covar, free, chi_square, ok)
+    candidates[chosen] = _candidate(scaled, chosen, values, chi_square, ok,
+                                    candidates[chosen].evaluations + refining + evaluations, n)
     # A single term has no smaller model in the family to be tested against.
     p_values = ({k: _boundary_lrt_p_value(fits[chosen.replace(k, "")][3], chi_square, n)
                  for k in chosen} if len(chosen) > 1 else {})
@@ -411,14 +637,15 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
         q_parts = {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}
         q_summary = _summarise_q(q)
 
-    boot = (_bootstrap(scaled, chosen, physical_values, y_fit, y, sigma, omega, bootstrap, rng)
+    boot = (_bootstrap(scaled, chosen, values, y_fit, y, sigma, omega, bootstrap, rng)
             if bootstrap else None)
     return DecayFit(
         status="ok" if ok else "error", message=None if ok else "the fit did not converge",
         model=chosen, domain=domain, criterion=criterion, t0=float(t[0]), omega=omega,
         values=values_dict, stderr=stderr, correlation=correlation,
         regimes={REGIME_NAMES[k]: k in chosen for k in TERMS}, lrt_p_values=p_values,
-        candidates=tuple(candidates), n_points=n, rms=rms, reduced_chi_square=float(reduced),
+        candidates=tuple(candidates.values()), n_points=n, rms=rms,
+        reduced_chi_square=float(reduced),
         noise_from_residuals=noise_from_residuals, t=t, y=y, y_fit=y_fit, sigma=sigma,
         q=q, q_stderr=q_stderr, q_parts=q_parts, q_summary=q_summary, bootstrap=boot,
         warnings=tuple(warnings), forced=model is not None)
@@ -454,16 +681,17 @@ def _summarise_q(q):
             "max": float(finite.max())}
 
 
-def _bootstrap(scaled, chosen, physical_values, y_fit, y, sigma, omega, count, rng):
-    """Residual bootstrap: refit the chosen model to y_fit + resampled weighted residuals."""
+def _bootstrap(scaled, chosen, fitted, y_fit, y, sigma, omega, count, rng):
+    """Residual bootstrap: refit the chosen model to y_fit + resampled weighted residuals.
+
+    Each refit starts from the fit (``fitted``: y0, a, b, c in internal units), in the same
+    internal units. A draw may hold amplitudes <= 0 as the data may; the model stays >= 0.
+    """
     standardized = (y - y_fit) / sigma
     samples = []
     for _ in range(count):
         draw = y_fit + sigma * rng.choice(standardized, size=y.size, replace=True)
-        if np.any(draw <= 0):
-            continue
-        resampled = _Scaled(scaled.t * scaled.time_unit + scaled.t0, draw, sigma)
-        values = resampled.to_physical(_fit_subset(resampled, chosen)[0])
+        values = scaled.to_physical(_fit_subset(scaled.with_amplitudes(draw), chosen, fitted)[0])
         row = list(values)
         if omega is not None:
             t_end = (scaled.t[-1]) * scaled.time_unit
@@ -482,9 +710,11 @@ def _bootstrap(scaled, chosen, physical_values, y_fit, y, sigma, omega, count, r
 def _fit_power_law(scaled, t, y, sigma, omega, domain, criterion, noise_from_residuals):
     """Fit dy/dt = -k*y**n (Handbook Eq. 20.51) in internal units."""
     ts, ys, w = scaled.t, scaled.y, scaled.weights
-    start_b = -math.log(max(ys[-1] / ys[0], 1e-6)) / max(ts[-1], 1e-12)
+    first = ys[0] if ys[0] > 0 else 1.0  # 1 is the largest amplitude
+    # The tail may be <= 0 (noise): then start from a decay to 1e-6 of the first amplitude.
+    start_b = -math.log(max(ys[-1] / first, 1e-6)) / max(ts[-1], 1e-12)
     params = lmfit.Parameters()
-    params.add("y0", value=ys[0], min=0.0)
+    params.add("y0", value=first, min=0.0)
     params.add("k", value=max(start_b, 1e-3), min=0.0)
     params.add("n", value=1.0, min=-2.0, max=6.0)
 

@@ -5,6 +5,8 @@ matplotlib is used through ``matplotlib.figure.Figure`` only (no pyplot, no disp
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -128,7 +130,15 @@ def _draw_amplitudes(axes, axes_residual, view, fit):
             v = candidate.values
             axes.plot(t_fine, decay.amplitude(t_fine - fit.t0, v["y0"], v["a"], v["b"], v["c"]),
                       color=color, lw=1.0, ls="--", label=name)
-    axes.set_yscale("log")
+    if np.all(fit.y > 0):
+        axes.set_yscale("log")
+    else:  # crests in the noise, kept as signed projections: linear about 0, log above
+        positive = fit.y_fit[fit.y_fit > 0]
+        floor = 2 * float(np.median(fit.sigma)) if np.all(np.isfinite(fit.sigma)) else 0.0
+        if not floor > 0:
+            floor = float(positive.min()) if positive.size else 1.0
+        # A whole power of ten, so that the tick labels at 0 and +-floor stand apart.
+        axes.set_yscale("symlog", linthresh=10.0 ** math.ceil(math.log10(floor)))
     axes.set_ylabel(f"amplitude ({view.signal_label})")
     axes.set_title("amplitudes: selected fit against single-regime fits")
     axes.legend(loc="upper right", fontsize=8)
@@ -156,8 +166,11 @@ def _draw_q(axes, view, fit):
         for key, color in (("fluid", "tab:orange"), ("hysteretic", "tab:green"),
                            ("coulomb", "tab:purple")):
             part = fit.q_parts[key]
-            if np.all(np.isfinite(part)):
-                axes.plot(fit.t, part, color=color, lw=1.0, ls="--",
+            # An absent regime is infinite throughout; a present one may be infinite only
+            # past a Coulomb stop (y = 0), where the line simply ends.
+            if np.any(np.isfinite(part)):
+                axes.plot(fit.t, np.where(np.isfinite(part), part, np.nan), color=color,
+                          lw=1.0, ls="--",
                           label=f"Q {key}".replace("coulomb", "Coulomb"))
     finite = fit.q[np.isfinite(fit.q)]
     if finite.size:
@@ -172,11 +185,14 @@ def _draw_rate(axes, view, fit):
     # Rate between neighbouring amplitudes, over spans long enough to beat the noise.
     span = max(1, t.size // 25)
     t_pair, y_start, y_end = t[span:] - t[:-span], y[:-span], y[span:]
-    valid = (y_start > 0) & (y_end > 0)
+    sigma = fit.sigma
+    # Only crests clear of the noise: the logarithm of a crest near it is mostly noise.
+    valid = (y_start > 3 * sigma[:-span]) & (y_end > 3 * sigma[span:])
     rate = np.log(y_start[valid] / y_end[valid]) / t_pair[valid]
     y_mid = np.sqrt(y_start[valid] * y_end[valid])
     axes.plot(y_mid, rate, "o", ms=3, color="tab:blue", label="from amplitudes")
-    y_fine = np.linspace(max(y.min(), 1e-12), y.max(), 300)
+    shown = y_mid if y_mid.size else y[y > 0]
+    y_fine = np.linspace(max(shown.min(initial=y.max()), 1e-12 * y.max()), y.max(), 300)
     v = fit.values
     if fit.power_law is None:
         model_rate = decay.decay_rate(y_fine, v["a"], v["b"], v["c"]) / y_fine

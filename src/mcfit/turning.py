@@ -8,18 +8,24 @@ Method for a waveform x(t):
    above 2.5 times the oscillation frequency.
 2. Coarse extrema: the signal, lightly smoothed, minus a straight-line equilibrium, is split
    into half-cycles by crossings with hysteresis (so noise cannot make false extrema).
-3. Each amplitude is a least-squares fit over its half-cycle (the samples within a quarter
-   period either side of the crest) of ``x - e(t) = exp(-g*s)*(A*cos(w*s) + B*sin(w*s))``,
+3. Each crest is located by a least-squares fit over its half-cycle (the samples within a
+   quarter period either side of the crest) of ``x - e(t) = exp(-g*s)*(A*cos(w*s) + B*sin(w*s))``,
    ``s = t - t_k``, with the local angular frequency ``w`` and decay rate ``g`` taken from the
-   neighbouring turning points. With only A and B free its variance is ``2*sigma_x**2/m`` for
-   ``m`` samples (THEORY.md section 7), and the envelope's own decay does not bias it. The
-   crest time is where the fitted phase is 0 or pi; the amplitude is the envelope there.
-   Windows are re-centred and the fit repeated.
+   neighbouring turning points; the crest time is where the fitted phase is 0 or pi.
+   Windows are re-centred and the fit repeated until the shifts are far inside the noise.
 4. The equilibrium ``e(t) = e0 + e1*t`` is refined from the alternation of the amplitudes: an
-   offset error raises every maximum and lowers every minimum, which second differences of
+   offset error raises every maximum and lowers every minimum, which sixth differences of
    the amplitude sequence isolate.
-5. Clipped crests, half-cycles broken by gaps and the noise-floor tail are excluded and
-   reported; beating, growth and too few turning points raise :class:`RecordError`.
+5. The crest times are smoothed against the crest number (a weighted local quadratic), the
+   crests missed in the noise are filled in, and the sequence is continued to the end of the
+   record. Each amplitude is then the projection of its half-cycle onto the envelope-shaped
+   cosine at that crest: one free parameter, linear in the data, so unbiased however small
+   the crest, with variance ``2*sigma_x**2/m`` for ``m`` samples (THEORY.md section 7). A
+   magnitude ``sqrt(A**2 + B**2)`` would be biased upwards near the noise. Amplitudes of
+   crests in the noise can be negative.
+6. Clipped crests, half-cycles broken by gaps, a floor of vibration the decay sinks into,
+   and the tail after the oscillation is lost in white noise are excluded and reported;
+   beating, growth and too few turning points raise :class:`RecordError`.
 
 The amplitude reported is the envelope ``y(t_k)`` at the crest of the phase; ``|x - e|`` where
 the velocity vanishes is smaller by the factor ``1/sqrt(1 + 1/(4*Q**2))``.
@@ -30,7 +36,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
+from scipy import ndimage, stats
 
 from mcfit.errors import RecordError
 
@@ -47,7 +53,7 @@ MIN_TURNING_POINTS = 4
 _BLOCK_SAMPLES = 1 << 20
 # Longest stretch fed to the FFT for the coarse period and noise level.
 _SPECTRUM_SAMPLES = 1 << 21
-_REFINE_PASSES = 4
+_REFINE_PASSES = 6
 # An amplitude below FLOOR_FACTOR times the floor level is dominated by the floor.
 FLOOR_FACTOR = 1.5
 # Larger times or signal values overflow float64 once squared and summed.
@@ -63,7 +69,8 @@ class TurningPoints:
     t : ndarray, shape (k,)
         Crest times (time units of the record, or cycle number n).
     y : ndarray, shape (k,)
-        Amplitudes about the equilibrium, >= 0 (signal units).
+        Amplitudes about the equilibrium (signal units): > 0 but for crests within the
+        noise, where the projection can be 0 or negative.
     sigma : ndarray, shape (k,)
         Standard deviation estimate of each amplitude.
     sign : ndarray of int, shape (k,)
@@ -236,53 +243,98 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
 
     # Coarse equilibrium: a straight line through the data, weighted towards small swings.
     e0, e1, t_ref = _equilibrium_line(tf, xf, period, noise)
-    centres, signs, threshold = _coarse_extrema(tf, xf, e0, e1, t_ref, period, samples_per_cycle, noise,
-                                     source)
+    centres, signs = _coarse_extrema(tf, xf, e0, e1, t_ref, period, samples_per_cycle,
+                                      noise, source)
 
     gamma = np.zeros((2, centres.size))  # decay rate and its slope at each crest
     valid = np.ones(centres.size, dtype=bool)
-    for _ in range(_REFINE_PASSES):
+    for refinement in range(_REFINE_PASSES):
         half = _local_half_periods(centres, period, valid)
         fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
+        # Equilibrium update from the alternation of maxima and minima; flattened crests
+        # would bias it.
+        fit.valid &= ~_clipped(fit, signs)
+        delta0, delta1 = _equilibrium_correction(centres, fit, t_ref)
+        e0, e1 = e0 + delta0, e1 + delta1
+        settled = refinement > 0 and _shifts_within_noise(fit, half, noise)
         centres = centres + np.where(fit.valid, np.clip(fit.shift, -half / 4, half / 4), 0.0)
         keep = np.concatenate([[True], np.diff(centres) > 0.25 * half[1:]])
         centres, signs, valid, y = centres[keep], signs[keep], fit.valid[keep], fit.y[keep]
         half = _local_half_periods(centres, period, valid)
         gamma = _local_decay_rates(centres, y, np.pi / half, valid)
-        # Equilibrium update from the alternation of maxima and minima.
-        fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
-        fit.valid &= ~_clipped(fit, signs)  # flattened crests would bias the equilibrium
-        delta0, delta1 = _equilibrium_correction(centres, fit, t_ref)
-        e0, e1 = e0 + delta0, e1 + delta1
-        valid = fit.valid
         period = _period_estimate(centres, signs, valid, period)
+        if settled:
+            break
 
     half = _local_half_periods(centres, period, valid)
-    fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
-    centres = centres + np.where(fit.valid, np.clip(fit.shift, -half / 4, half / 4), 0.0)
-    half = _local_half_periods(centres, period, fit.valid)
-    gamma = _local_decay_rates(centres, fit.y, np.pi / half, fit.valid)
     fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
 
     noise_sigma = _pooled_noise(fit)
     if not np.isfinite(noise_sigma):
         noise_sigma = noise
-    # Windows without a fit have an infinite gain: their sigma is infinite, even when the
-    # record is noise-free (0 * inf would be NaN).
-    sigma_y = np.full(fit.gain.shape, np.inf)
-    finite_gain = np.isfinite(fit.gain)
-    sigma_y[finite_gain] = noise_sigma * np.sqrt(fit.gain[finite_gain])
-    y = np.abs(fit.y)
-    reasons = np.array([""] * centres.size, dtype=object)
-    reasons[~fit.valid] = np.where(fit.edge[~fit.valid], "edge", "gap")
+    magnitude = np.abs(fit.y)
+    magnitude_sigma = _amplitude_sigma(noise_sigma, fit.gain)
+    measured = fit.valid & ~_clipped(fit, signs)
+    floor_level, floor_start = _vibration_floor(centres, magnitude, noise_sigma, fit, measured)
+    before_floor = np.arange(centres.size) < (centres.size if floor_start is None else floor_start)
+    period, period_sigma, drift, drift_sigma = _period_and_drift(
+        centres, signs, magnitude, measured & before_floor, period)
 
-    clipped = _clipped(fit, signs)
-    reasons[(reasons == "") & clipped] = "clipped"
+    # Crest times from the phase of all crests, continued to the end of the decay, and
+    # amplitudes as projections onto that phase (THEORY.md section 7: near the noise a
+    # magnitude is biased, a projection is not).
+    end = int(np.count_nonzero(before_floor))
+    limit = tf[-1] if floor_start is None else centres[floor_start] - 0.5 * period / 2
+    half = _local_half_periods(centres, period, fit.valid)
+    weights = np.where(measured, magnitude**2 / np.maximum(
+        magnitude_sigma**2, (1e-9 * np.max(magnitude, initial=0.0))**2 + 1e-300), 0.0)
+    crests, crest_signs = _crest_sequence(centres[:end] + np.where(fit.valid, fit.shift, 0.0)[:end],
+                                          signs[:end], half[:end], weights[:end], limit)
+    reliable = measured & before_floor & (magnitude > 5 * magnitude_sigma)
+    crest_gamma = _decay_rates_at(crests, centres, magnitude, np.pi / half, reliable)
+    crest_half = _local_half_periods(crests, period, np.ones(crests.size, dtype=bool))
+    projected = _fit_windows(tf, xf, crests, crest_signs, crest_half, crest_gamma, e0, e1, t_ref)
+    keep = projected.count > 0  # crests filled in across a long gap have no samples
+    if not keep.all():
+        crests, crest_signs = crests[keep], crest_signs[keep]
+        crest_half, crest_gamma = crest_half[keep], crest_gamma[:, keep]
+        projected = _fit_windows(tf, xf, crests, crest_signs, crest_half, crest_gamma,
+                                 e0, e1, t_ref)
+    y = projected.projection
+    sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain)
+    log_step = crest_gamma[0] * crest_half
+    reasons = np.array([""] * crests.size, dtype=object)
+    reasons[~projected.complete] = np.where(projected.edge[~projected.complete], "edge", "gap")
+    reasons[(reasons == "") & _clipped(projected, crest_signs)] = "clipped"
+    if floor_start is not None:  # the crests in the floor, with their magnitudes
+        crests = np.concatenate([crests, centres[floor_start:]])
+        crest_signs = np.concatenate([crest_signs, signs[floor_start:]])
+        y = np.concatenate([y, magnitude[floor_start:]])
+        log_step = np.concatenate([log_step, np.full(centres.size - floor_start, np.nan)])
+        sigma_y = np.concatenate([sigma_y, magnitude_sigma[floor_start:]])
+        reasons = np.concatenate([reasons, np.full(centres.size - floor_start, "noise floor",
+                                                   dtype=object)])
     if np.any(reasons == "clipped"):
         n_clip = int(np.count_nonzero(reasons == "clipped"))
         notes.append(f"{n_clip} clipped (saturated) extrema excluded")
 
-    scatter = _amplitude_scatter(y, reasons == "")
+    floor_time = float("nan")
+    if floor_start is not None:
+        floor_time = float(centres[floor_start])
+        notes.append(f"noise floor at amplitude {floor_level:.3g}: "
+                     f"{int(np.count_nonzero(reasons == 'noise floor'))} turning points from "
+                     f"t = {floor_time:.6g} excluded")
+    else:
+        cut = _sinks_below_noise(y, sigma_y, reasons == "")
+        if cut is not None:
+            in_floor = (np.arange(y.size) >= cut) & (reasons == "")
+            reasons[in_floor] = "noise floor"
+            floor_time = float(crests[cut])
+            floor_level = float(np.median(sigma_y[reasons == ""]))
+            notes.append(f"noise floor: the oscillation is lost in the noise (amplitude "
+                         f"sigma {floor_level:.3g}); {int(in_floor.sum())} turning points from "
+                         f"t = {floor_time:.6g} excluded")
+    scatter = _amplitude_scatter(y, sigma_y, log_step, reasons == "")
     white = float(np.sqrt(np.median(sigma_y[reasons == ""] ** 2))) if np.any(reasons == "") \
         else float("nan")
     if np.isfinite(scatter) and scatter > 1.5 * white and scatter > 1e-5 * np.max(y):
@@ -290,23 +342,8 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         notes.append(f"amplitudes scatter by {scatter:.3g} about a smooth envelope, "
                      f"{scatter / white:.3g} times what the sample noise explains (correlated "
                      "noise or disturbances): sigma includes the excess")
-    floor_level, floor_start = _noise_floor(centres, y, noise_sigma, fit, reasons == "",
-                                            threshold)
-    floor_time = float("nan")
-    if floor_start is not None:
-        in_floor = (np.arange(y.size) >= floor_start) & (reasons == "")
-        reasons[in_floor] = "noise floor"
-        floor_time = float(centres[floor_start])
-        notes.append(f"noise floor at amplitude {floor_level:.3g}: {int(in_floor.sum())} "
-                     f"turning points from t = {floor_time:.6g} excluded")
-    last_time = float(centres[-1])
-    if tf[-1] - last_time > 2 * period and np.isnan(floor_time):
-        floor_time = last_time
-        floor_level = max(floor_level, threshold)
-        notes.append(f"no turning points after t = {last_time:.6g}: the oscillation sank "
-                     f"below the noise ({threshold:.3g})")
     used = reasons == ""
-    _check_decay(centres, y, sigma_y, used, source, floor_level)
+    _check_decay(crests, y, sigma_y, used, source, floor_level)
     n_used = int(np.count_nonzero(used))
     if n_used < MIN_TURNING_POINTS:
         raise RecordError(
@@ -314,7 +351,6 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
             f"{y.size} found, {y.size - n_used} excluded ({_reason_summary(reasons)}). Use a "
             "longer record, or check the signal column and the noise.")
 
-    period, period_sigma, drift, drift_sigma = _period_and_drift(centres, signs, y, used, period)
     if domain == "time" and np.isfinite(drift_sigma) and abs(drift) > 3 * drift_sigma \
             and abs(drift) > 1e-3:
         notes.append(f"the period changes by {100 * drift:+.2g}% from the smallest to the "
@@ -326,8 +362,8 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         notes.append(f"only {samples_per_cycle:.3g} samples per cycle: amplitudes are less "
                      "accurate below 8")
     return TurningPoints(
-        t=_frozen(centres), y=_frozen(y), sigma=_frozen(sigma_y),
-        sign=_frozen(signs.astype(np.int8)), used=_frozen(used),
+        t=_frozen(crests), y=_frozen(y), sigma=_frozen(sigma_y),
+        sign=_frozen(crest_signs.astype(np.int8)), used=_frozen(used),
         excluded_reason=tuple(str(r) for r in reasons),
         period=period, period_sigma=period_sigma, period_drift=drift,
         period_drift_sigma=drift_sigma,
@@ -506,7 +542,7 @@ def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, sourc
     if centres.size < MIN_TURNING_POINTS:
         raise RecordError(f"only {centres.size} turning points found in {source} (need "
                           f"{MIN_TURNING_POINTS}). Use a record of several cycles.")
-    return centres.astype(np.float64), signs, threshold
+    return centres.astype(np.float64), signs
 
 
 def _local_half_periods(centres, period, valid):
@@ -573,6 +609,107 @@ def _parabola(x, xp, fp):
             + f2 * (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1)))
 
 
+# Crests either side of each one in the local fit of crest time against crest number.
+_PHASE_HALF_WIDTH = 10
+
+
+def _crest_numbers(times, signs, half):
+    """Whole half-periods from the first crest: each step is the nearest whole number of
+    local half-periods whose parity agrees with the signs (odd when they alternate)."""
+    if times.size < 2:
+        return np.zeros(times.size, dtype=np.int64)
+    ratio = np.diff(times) / (0.5 * (half[1:] + half[:-1]))
+    step = np.maximum(np.rint(ratio), 1.0)
+    wrong = (step % 2 == 1) != (signs[1:] != signs[:-1])
+    nearer = np.where(ratio > step, step + 1, step - 1)
+    step = np.where(wrong, np.where(nearer >= 1, nearer, step + 1), step)
+    return np.concatenate([[0], np.cumsum(step)]).astype(np.int64)
+
+
+def _smooth_crest_times(numbers, times, weights, count):
+    """Crest times at numbers 0..count-1: a weighted local quadratic in the crest number
+    over 2*_PHASE_HALF_WIDTH + 1 crests (tricube kernel), local linear where too few crests
+    are measured, and past the last measured crest the straight line continuing it.
+
+    Returns (times, half-period at the last measured crest).
+    """
+    have = weights > 0
+    first, last = numbers[have][0], numbers[have][-1]
+    slope = (times[have][-1] - times[have][0]) / max(last - first, 1)
+    origin = times[have][0] - first * slope
+    w = np.zeros(count)
+    r = np.zeros(count)
+    n_measured = min(last + 1, count)
+    inside = numbers < count
+    w[numbers[inside]] = weights[inside]
+    r[numbers[inside]] = (times - (origin + numbers * slope))[inside]
+    d = np.arange(-_PHASE_HALF_WIDTH, _PHASE_HALF_WIDTH + 1, dtype=np.float64)
+    kernel = (1.0 - (np.abs(d) / (_PHASE_HALF_WIDTH + 1)) ** 3) ** 3
+    # Moments sum_d K(d) d**p w(m+d) and sum_d K(d) d**p w(m+d) r(m+d) about each m.
+    moment = [ndimage.correlate1d(w, kernel * d**p, mode="constant") for p in range(5)]
+    target = [ndimage.correlate1d(w * r, kernel * d**p, mode="constant") for p in range(3)]
+    points = ndimage.correlate1d((w > 0).astype(np.float64), np.ones(d.size), mode="constant")
+    matrix = np.stack([np.stack(moment[i:i + 3], axis=-1) for i in range(3)], axis=-2)
+    rhs = np.stack(target, axis=-1)
+    smooth = np.full(count, np.nan)
+    local_slope = np.full(count, np.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        det3 = np.linalg.det(matrix)
+        quadratic = (points >= 4) & (np.abs(det3) > 1e-12 * moment[0] ** 3)
+        if np.any(quadratic):
+            solution = np.linalg.solve(matrix[quadratic], rhs[quadratic][..., None])[..., 0]
+            smooth[quadratic] = solution[:, 0]
+        det2 = moment[0] * moment[2] - moment[1] ** 2
+        linear = (points >= 2) & (det2 > 1e-12 * moment[0] ** 2)
+        local_slope[linear] = (moment[0] * target[1] - moment[1] * target[0])[linear] / \
+            det2[linear]
+        line = (moment[2] * target[0] - moment[1] * target[1]) / det2
+        fill = ~quadratic & linear
+        smooth[fill] = line[fill]
+    known = np.isfinite(smooth[:n_measured])
+    grid = np.arange(count)
+    if not known.any():
+        return origin + grid * slope, slope
+    smooth[:n_measured] = np.interp(grid[:n_measured], grid[:n_measured][known],
+                                    smooth[:n_measured][known])
+    tail_slope = local_slope[last] if np.isfinite(local_slope[last]) else 0.0
+    beyond = grid > last
+    smooth[beyond] = smooth[last] + tail_slope * (grid[beyond] - last)
+    return origin + grid * slope + smooth, slope + tail_slope
+
+
+def _crest_sequence(times, signs, half, weights, limit):
+    """Every crest from the first measured one to ``limit``: smoothed times and signs.
+
+    ``times`` are measured crest times, ``weights`` their inverse variances up to a common
+    factor (0: not measured). Crests missed in between (noise) are filled in, and the
+    sequence goes on past the last crest found, at the local half-period, to ``limit``.
+    """
+    if np.count_nonzero(weights > 0) < 3:
+        return times, signs
+    numbers = _crest_numbers(times, signs, half)
+    count = int(numbers[-1]) + 1
+    smooth, step = _smooth_crest_times(numbers, times, weights, count)
+    if step > 0 and smooth[-1] < limit:
+        extra = int(np.floor((limit - smooth[-1]) / step))
+        if extra > 0:
+            smooth = np.concatenate([smooth, smooth[-1] + step * np.arange(1, extra + 1)])
+    grid = np.arange(smooth.size)
+    crest_signs = np.where(grid % 2 == 0, signs[0], -signs[0]).astype(signs.dtype)
+    ordered = np.concatenate([[True], np.diff(smooth) > 0])
+    return smooth[ordered], crest_signs[ordered]
+
+
+def _decay_rates_at(crests, centres, magnitude, omega, reliable):
+    """Decay rate and its slope (rows) at ``crests``, from the reliable crests among
+    ``centres``, held at the value of the nearest reliable crest beyond them."""
+    gamma = _local_decay_rates(centres, magnitude, omega, reliable)
+    index = np.flatnonzero(reliable)
+    if index.size == 0:
+        return np.zeros((2, crests.size))
+    return np.vstack([np.interp(crests, centres[index], row[index]) for row in gamma])
+
+
 class _WindowFits:
     """Per-window results of the half-cycle fits."""
 
@@ -584,7 +721,10 @@ class _WindowFits:
         self.rss = np.zeros(k)
         self.count = np.zeros(k, dtype=np.int64)
         self.valid = np.zeros(k, dtype=bool)
+        self.complete = np.zeros(k, dtype=bool)  # the window covers its half-cycle, no gap
         self.edge = np.zeros(k, dtype=bool)
+        self.projection = np.zeros(k)  # amplitude with the crest fixed at the centre
+        self.projection_gain = np.full(k, np.inf)  # var(projection) / sigma**2
         self.peak = np.zeros(k)       # fitted extreme value of x (equilibrium included)
         self.at_max = np.zeros(k, dtype=np.int64)  # samples at the record's max / min level
         self.at_min = np.zeros(k, dtype=np.int64)
@@ -615,45 +755,40 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
         lengths = hi[sel] - lo[sel]
         total = int(lengths.sum())
         count = last - first
+        starts = np.cumsum(lengths) - lengths
+        nonempty = lengths > 0
         window = np.repeat(np.arange(count), lengths)
-        index = (np.arange(total) - np.repeat(np.cumsum(lengths) - lengths, lengths)
-                 + np.repeat(lo[sel], lengths))
+        index = np.arange(total) + np.repeat(lo[sel] - starts, lengths)
         tt = t[index]
         xx = x[index]
         s = tt - centres[sel][window]
         r = xx - (e0 + e1 * (tt - t_ref))
         ws = omega[sel][window] * s
-        rate = gamma[0][sel][window]
-        rate_slope = gamma[1][sel][window]
-        envelope = np.exp(-(rate + 0.5 * rate_slope * s) * s)
+        envelope = np.exp(-(gamma[0][sel][window] + 0.5 * gamma[1][sel][window] * s) * s)
         u1 = envelope * np.cos(ws)
         u2 = envelope * np.sin(ws)
-
-        def total_of(values):
-            return np.bincount(window, weights=values, minlength=count)
-
-        s11, s12, s22 = total_of(u1 * u1), total_of(u1 * u2), total_of(u2 * u2)
-        b1, b2, s1, s2 = total_of(u1 * r), total_of(u2 * r), total_of(u1), total_of(u2)
-        rr = total_of(r * r)
-        at_max = np.bincount(window, weights=(xx >= top - tolerance), minlength=count)
-        at_min = np.bincount(window, weights=(xx <= bottom + tolerance), minlength=count)
-        # Largest step inside each window (a gap) and the span covered.
+        # Windows are contiguous runs of the gathered samples: sum each run at once.
+        columns = np.empty((10, total))
+        for row, (left, right) in enumerate(((u1, u1), (u1, u2), (u2, u2), (u1, r), (u2, r),
+                                             (u1, 1.0), (u2, 1.0), (r, r))):
+            np.multiply(left, right, out=columns[row])
+        np.greater_equal(xx, top - tolerance, out=columns[8])
+        np.less_equal(xx, bottom + tolerance, out=columns[9])
+        sums = np.zeros((columns.shape[0], count))
+        s_min = np.full(count, np.inf)
+        s_max = np.full(count, -np.inf)
+        max_step = np.zeros(count)
         if total:
-            s_min = np.full(count, np.inf)
-            s_max = np.full(count, -np.inf)
-            starts = np.cumsum(lengths) - lengths
-            nonempty = lengths > 0
-            s_min[nonempty] = s[starts[nonempty]]
-            s_max[nonempty] = s[starts[nonempty] + lengths[nonempty] - 1]
+            begin = starts[nonempty]
+            sums[:, nonempty] = np.add.reduceat(columns, begin, axis=1)
+            s_min[nonempty] = s[begin]
+            s_max[nonempty] = s[begin + lengths[nonempty] - 1]
+            # Largest step inside each window: a gap.
             step = np.diff(tt, prepend=tt[0])
-            step[starts[nonempty]] = 0.0
-            max_step = np.zeros(count)
-            np.maximum.at(max_step, window, step)
-        else:
-            s_min = np.full(count, np.inf)
-            s_max = np.full(count, -np.inf)
-            max_step = np.zeros(count)
-        del tt, xx, s, r, ws, envelope, u1, u2, index, window, rate, rate_slope
+            step[begin] = 0.0
+            max_step[nonempty] = np.maximum.reduceat(step, begin)
+        s11, s12, s22, b1, b2, s1, s2, rr, at_max, at_min = sums
+        del tt, xx, s, r, ws, envelope, u1, u2, index, window, columns
 
         det = s11 * s22 - s12 * s12
         good = (lengths >= 3) & (det > 1e-12 * np.maximum(s11 * s22, 1e-300))
@@ -674,8 +809,15 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
         rss = np.maximum(rr - a * b1 - b * b2, 0.0)
         span = s_max - s_min
         hs = half[sel]
-        valid = (good & (span >= 0.4 * hs) & (s_min < 0.1 * hs) & (s_max > -0.1 * hs)
-                 & (max_step < 0.5 * hs) & (np.abs(angle) < 0.5 * np.pi))
+        complete = ((lengths >= 3) & (s11 > 0) & (span >= 0.4 * hs) & (s_min < 0.1 * hs)
+                    & (s_max > -0.1 * hs) & (max_step < 0.5 * hs))
+        valid = complete & good & (np.abs(angle) < 0.5 * np.pi)
+        # With the phase known, one free parameter: linear in the data, so unbiased however
+        # small the crest (the magnitude of the two-parameter fit is not).
+        s11_safe = np.where(s11 > 0, s11, 1.0)
+        out.projection[sel] = np.where(complete, sg * b1 / s11_safe, 0.0)
+        out.projection_gain[sel] = np.where(complete, 1.0 / s11_safe, np.inf)
+        out.complete[sel] = complete
         out.y[sel] = y_signed * sg  # amplitude along the expected sign (< 0 if wrong)
         out.shift[sel] = shift
         out.gain[sel] = np.where(good, gain, np.inf)
@@ -728,6 +870,17 @@ def _equilibrium_correction(centres, fit, t_ref):
     return d0, d1
 
 
+def _shifts_within_noise(fit, half, noise):
+    """True when the crest shifts of a pass are what the sample noise alone gives them
+    (root-mean-square under 2 standard errors): further passes would follow the noise."""
+    ok = fit.valid & np.isfinite(fit.gain) & (fit.y > 0)
+    if not (np.count_nonzero(ok) >= MIN_TURNING_POINTS and noise > 0):
+        return False
+    phase_sigma = noise * np.sqrt(fit.gain[ok]) / fit.y[ok]
+    z = fit.shift[ok] * np.pi / half[ok] / phase_sigma
+    return bool(np.sqrt(np.mean(z * z)) < 2.0)
+
+
 def _period_estimate(centres, signs, valid, period):
     pairs = valid[:-1] & valid[1:] & (signs[:-1] != signs[1:])
     spacing = np.diff(centres)[pairs]
@@ -760,61 +913,100 @@ def _clipped(fit, signs):
 def _running_median(values, width):
     if values.size < width or width < 3:
         return values.copy()
-    half = width // 2
-    padded = np.pad(values, half, mode="edge")
-    return np.median(np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1), axis=1)
+    # The ends repeat the end values, as if the sequence went on level.
+    return ndimage.median_filter(values, size=2 * (width // 2) + 1, mode="nearest")
 
 
-def _amplitude_scatter(y, candidate):
+def _amplitude_scatter(y, sigma, log_step, candidate):
     """Robust scatter of amplitudes about a smooth envelope, from third differences.
 
     Third differences cancel the envelope's curvature (var = 20*sigma**2 for independent
-    errors); an alternating offset error shows up in them too, as it should.
+    errors); an alternating offset error shows up in them too, as it should. A fast decay
+    has third differences of its own, about ``log_step**3 * y`` for a decrement
+    ``log_step`` per crest: only the crests where that is small against the noise count.
     """
     index = np.flatnonzero(candidate)
     if index.size < 8:
         return float("nan")
     d3 = np.diff(y[index], 3)
+    middle = index[1:-2]
+    with np.errstate(invalid="ignore"):
+        negligible = np.abs(log_step[middle]) ** 3 * np.abs(y[middle]) < \
+            0.3 * np.sqrt(20.0) * sigma[middle]
+    if np.count_nonzero(negligible) < 8:
+        return float("nan")
+    d3 = d3[negligible]
     return float(1.4826 * np.median(np.abs(d3 - np.median(d3))) / np.sqrt(20.0))
 
 
-def _noise_floor(centres, y, noise_sigma, fit, candidate, threshold):
-    """(floor level, index of the first turning point in the floor or None).
+def _amplitude_sigma(noise_sigma, gain):
+    """Standard deviation of window amplitudes from the sample noise and each window's
+    gain; infinite for windows without a fit, even on a noise-free record (0 * inf is NaN)."""
+    sigma = np.full(gain.shape, np.inf)
+    finite = np.isfinite(gain)
+    sigma[finite] = noise_sigma * np.sqrt(gain[finite])
+    return sigma
 
-    Two signs of a floor: amplitudes comparable to the crest-detection threshold or to what
-    noise alone gives a half-cycle fit (``sqrt(trace of the covariance)``); and an envelope
-    that stops decaying at the end of the record, well below its start (a floor of
-    vibration, hum or quantization): the tail within FLOOR_FACTOR of its final level decays
-    at less than 0.3 times the rate just before it.
+
+def _vibration_floor(centres, magnitude, noise_sigma, fit, candidate):
+    """(floor level, index of the first crest in the floor) or (0.0, None).
+
+    A floor of vibration, hum or quantization: the envelope stops decaying at the end of
+    the record, well below its start and well above what white noise gives a half-cycle
+    fit: the tail within FLOOR_FACTOR of its final level decays at less than 0.3 times the
+    rate just before it. (A decay into white noise is no floor: its crests are kept, as
+    projections, until the oscillation is lost in the noise; see _sinks_below_noise.)
     """
     index = np.flatnonzero(candidate)
     if index.size < 2 * MIN_TURNING_POINTS:
         return 0.0, None
-    values = y[index]
+    values = magnitude[index]
     times = centres[index]
     smooth = _running_median(values, max(5, (index.size // 30) | 1))
     white = noise_sigma * np.sqrt(2.0 * np.median(fit.gain[index]))
-    # Crests near the detection threshold were found because noise pushed them over it.
-    level = max(white, threshold)
     m = max(5, index.size // 8)
     final = float(np.median(smooth[-m:]))
+    if not (index.size >= 3 * m and final < 0.25 * np.max(smooth) and final > 3 * white):
+        return 0.0, None
     above = np.flatnonzero(smooth >= FLOOR_FACTOR * final)
-    if index.size >= 3 * m and above.size and final < 0.25 * np.max(smooth):
-        start = above[-1] + 1
-        length = index.size - start
-        if length >= 5 and start >= 5:
-            before = slice(max(0, start - max(length, m)), start)
-            rate_in = np.polyfit(times[start:], np.log(values[start:]), 1)[0]
-            rate_before = np.polyfit(times[before], np.log(values[before]), 1)[0]
-            if rate_before < 0 and rate_in > 0.3 * rate_before:
-                level = max(level, final)
-    above = np.flatnonzero(smooth >= FLOOR_FACTOR * level)
     if above.size == 0:
-        return level, int(index[0])
-    cut = above[-1] + 1
-    if cut >= index.size:
-        return (level if level > max(white, threshold) else 0.0), None
-    return level, int(index[cut])
+        return 0.0, None
+    start = above[-1] + 1
+    length = index.size - start
+    if length < 5 or start < 5:
+        return 0.0, None
+    before = slice(max(0, start - max(length, m)), start)
+    rate_in = np.polyfit(times[start:], np.log(values[start:]), 1)[0]
+    rate_before = np.polyfit(times[before], np.log(values[before]), 1)[0]
+    if rate_before < 0 and rate_in > 0.3 * rate_before:
+        return final, int(index[start])
+    return 0.0, None
+
+
+# Crests per group in the test for a signal left in the tail.
+_NOISE_GROUP = 9
+
+
+def _sinks_below_noise(y, sigma, candidate):
+    """Index of the first crest after the oscillation is lost in the noise, or None.
+
+    The signal counts as present while the mean of some _NOISE_GROUP successive amplitudes
+    is 4 standard errors above 0; one more group is kept past the last such, so that
+    every crest where the envelope is near the noise stays in the fit.
+    """
+    index = np.flatnonzero(candidate & np.isfinite(sigma) & (sigma > 0))
+    group = _NOISE_GROUP
+    if index.size < 3 * group:
+        return None
+    z = y[index] / sigma[index]
+    mean_z = np.convolve(z, np.ones(group), mode="valid") / np.sqrt(group)
+    present = np.flatnonzero(mean_z > 4.0)
+    if present.size == 0:
+        return None
+    cut = int(present[-1]) + 2 * group
+    if index.size - cut < group:
+        return None
+    return int(index[cut])
 
 
 def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
@@ -834,7 +1026,8 @@ def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
             "not a free decay. Check the record, or cut it to the decaying part.")
     running_min = np.minimum.accumulate(smooth)
     rise = smooth - running_min
-    k = int(np.argmax(rise / np.maximum(running_min, 1e-300)))
+    # Crests in the noise can be <= 0: a rise from there is judged against the noise.
+    k = int(np.argmax(rise / np.maximum(running_min, max(noise, 1e-300))))
     # Near the ends the median is the crest itself, often an edge-cut window: judge the
     # rise against that crest's own uncertainty when it is the larger.
     if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * max(noise, sigma_y[index[k]])
