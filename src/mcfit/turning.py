@@ -286,10 +286,10 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     end = int(np.count_nonzero(before_floor))
     limit = tf[-1] if floor_start is None else centres[floor_start] - 0.5 * period / 2
     half = _local_half_periods(centres, period, fit.valid)
-    weights = np.where(measured, magnitude**2 / np.maximum(
-        magnitude_sigma**2, (1e-9 * np.max(magnitude, initial=0.0))**2 + 1e-300), 0.0)
-    crests, crest_signs = _crest_sequence(centres[:end] + np.where(fit.valid, fit.shift, 0.0)[:end],
-                                          signs[:end], half[:end], weights[:end], limit)
+    weights = np.where(measured, _phase_weights(magnitude, magnitude_sigma, magnitude), 0.0)
+    crests, crest_signs, phase_variance = _crest_sequence(
+        centres[:end] + np.where(fit.valid, fit.shift, 0.0)[:end], signs[:end], half[:end],
+        weights[:end], limit)
     reliable = measured & before_floor & (magnitude > 5 * magnitude_sigma)
     crest_gamma = _decay_rates_at(crests, centres, magnitude, np.pi / half, reliable)
     crest_half = _local_half_periods(crests, period, np.ones(crests.size, dtype=bool))
@@ -298,10 +298,16 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     if not keep.all():
         crests, crest_signs = crests[keep], crest_signs[keep]
         crest_half, crest_gamma = crest_half[keep], crest_gamma[:, keep]
+        phase_variance = phase_variance[keep]
         projected = _fit_windows(tf, xf, crests, crest_signs, crest_half, crest_gamma,
                                  e0, e1, t_ref)
-    y = projected.projection
-    sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain)
+    # A phase error d scales a projection by cos(d), on average by exp(-var(d)/2) for a
+    # Gaussian error: undone here. It matters in the faint tail, where the crest times are
+    # least certain (there var(d) reaches about 0.1 at a few sigma).
+    phase_gain = np.exp(0.5 * np.minimum(np.nan_to_num(phase_variance, nan=0.0),
+                                         _LARGEST_PHASE_VARIANCE))
+    y = projected.projection * phase_gain
+    sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain) * phase_gain
     log_step = crest_gamma[0] * crest_half
     reasons = np.array([""] * crests.size, dtype=object)
     reasons[~projected.complete] = np.where(projected.edge[~projected.complete], "edge", "gap")
@@ -611,6 +617,9 @@ def _parabola(x, xp, fp):
 
 # Crests either side of each one in the local fit of crest time against crest number.
 _PHASE_HALF_WIDTH = 10
+# Beyond this phase variance (rad**2) a crest's phase is mostly noise: its projection's
+# bias is corrected no further.
+_LARGEST_PHASE_VARIANCE = 1.0
 
 
 def _crest_numbers(times, signs, half):
@@ -631,7 +640,14 @@ def _smooth_crest_times(numbers, times, weights, count):
     over 2*_PHASE_HALF_WIDTH + 1 crests (tricube kernel), local linear where too few crests
     are measured, and past the last measured crest the straight line continuing it.
 
-    Returns (times, half-period at the last measured crest).
+    ``weights`` are the inverse variances of the measured crest phases (rad**-2).
+
+    Returns (times, half-period at the last measured crest, phase variance, growth). The
+    variance (rad**2) of each smoothed crest phase is that of a linear smoother,
+    ``e1' M^-1 N M^-1 e1`` with ``M`` the kernel-weighted and ``N`` the squared-kernel-
+    weighted moments. ``growth`` = (covariance of the last measured crest's phase with the
+    continuing slope, variance of that slope) per crest: the variance ``k`` crests further
+    on is ``variance[last] + 2*k*growth[0] + k**2*growth[1]``.
     """
     have = weights > 0
     first, last = numbers[have][0], numbers[have][-1]
@@ -645,59 +661,102 @@ def _smooth_crest_times(numbers, times, weights, count):
     r[numbers[inside]] = (times - (origin + numbers * slope))[inside]
     d = np.arange(-_PHASE_HALF_WIDTH, _PHASE_HALF_WIDTH + 1, dtype=np.float64)
     kernel = (1.0 - (np.abs(d) / (_PHASE_HALF_WIDTH + 1)) ** 3) ** 3
-    # Moments sum_d K(d) d**p w(m+d) and sum_d K(d) d**p w(m+d) r(m+d) about each m.
-    moment = [ndimage.correlate1d(w, kernel * d**p, mode="constant") for p in range(5)]
-    target = [ndimage.correlate1d(w * r, kernel * d**p, mode="constant") for p in range(3)]
+    # Moments sum_d K(d) d**p w(m+d), sum_d K(d)**2 d**p w(m+d) (for the variances) and
+    # sum_d K(d) d**p w(m+d) r(m+d) about each m.
+    moment = np.array([ndimage.correlate1d(w, kernel * d**p, mode="constant")
+                       for p in range(5)])
+    spread = np.array([ndimage.correlate1d(w, kernel**2 * d**p, mode="constant")
+                       for p in range(5)])
+    target = np.array([ndimage.correlate1d(w * r, kernel * d**p, mode="constant")
+                       for p in range(3)])
     points = ndimage.correlate1d((w > 0).astype(np.float64), np.ones(d.size), mode="constant")
-    matrix = np.stack([np.stack(moment[i:i + 3], axis=-1) for i in range(3)], axis=-2)
-    rhs = np.stack(target, axis=-1)
+    # Per crest: the 3x3 and 2x2 moment matrices (quadratic, linear), and the cross
+    # moments of the two fits (3x2), all Hankel in the moments.
+    hankel3 = np.array([[i + j for j in range(3)] for i in range(3)])
+    matrix3 = np.moveaxis(moment[hankel3], -1, 0)
+    matrix2 = matrix3[:, :2, :2]
+    spread3 = np.moveaxis(spread[hankel3], -1, 0)
     smooth = np.full(count, np.nan)
-    local_slope = np.full(count, np.nan)
+    variance = np.full(count, np.nan)
+    row3 = np.full((count, 3), np.nan)  # the quadratic fit's weights on the moments
     with np.errstate(divide="ignore", invalid="ignore"):
-        det3 = np.linalg.det(matrix)
+        det3 = np.linalg.det(matrix3)
         quadratic = (points >= 4) & (np.abs(det3) > 1e-12 * moment[0] ** 3)
         if np.any(quadratic):
-            solution = np.linalg.solve(matrix[quadratic], rhs[quadratic][..., None])[..., 0]
-            smooth[quadratic] = solution[:, 0]
+            row3[quadratic] = np.linalg.inv(matrix3[quadratic])[:, 0]
         det2 = moment[0] * moment[2] - moment[1] ** 2
         linear = (points >= 2) & (det2 > 1e-12 * moment[0] ** 2)
-        local_slope[linear] = (moment[0] * target[1] - moment[1] * target[0])[linear] / \
-            det2[linear]
-        line = (moment[2] * target[0] - moment[1] * target[1]) / det2
+        inverse2 = np.zeros((count, 2, 2))
+        inverse2[linear] = np.linalg.inv(matrix2[linear])
+        # Where the quadratic is not determined, the line gives the crest time.
         fill = ~quadratic & linear
-        smooth[fill] = line[fill]
-    known = np.isfinite(smooth[:n_measured])
+        row3[fill] = np.column_stack([inverse2[fill, 0], np.zeros(np.count_nonzero(fill))])
+        smooth = np.einsum("ij,ji->i", row3, target)
+        variance = np.einsum("ij,ijk,ik->i", row3, spread3, row3)
+        local_slope = np.einsum("ij,ji->i", inverse2[:, 1], target[:2])
     grid = np.arange(count)
+    known = np.isfinite(smooth[:n_measured])
     if not known.any():
-        return origin + grid * slope, slope
+        return origin + grid * slope, slope, np.full(count, np.nan), (np.nan, np.nan)
     smooth[:n_measured] = np.interp(grid[:n_measured], grid[:n_measured][known],
                                     smooth[:n_measured][known])
-    tail_slope = local_slope[last] if np.isfinite(local_slope[last]) else 0.0
+    tail_slope = local_slope[last] if linear[last] else 0.0
+    growth = (np.nan, np.nan)
+    if linear[last] and np.isfinite(smooth[last]):
+        slope_row = inverse2[last, 1]
+        growth = (float(row3[last] @ spread3[last, :, :2] @ slope_row),
+                  float(slope_row @ spread3[last, :2, :2] @ slope_row))
     beyond = grid > last
-    smooth[beyond] = smooth[last] + tail_slope * (grid[beyond] - last)
-    return origin + grid * slope + smooth, slope + tail_slope
+    steps = grid[beyond] - last
+    smooth[beyond] = smooth[last] + tail_slope * steps
+    variance[beyond] = _continued_variance(variance[last], growth, steps)
+    return origin + grid * slope + smooth, slope + tail_slope, variance, growth
+
+
+def _continued_variance(variance, growth, steps):
+    """Phase variance ``steps`` crests past the last measured one (see
+    _smooth_crest_times)."""
+    return variance + 2.0 * steps * growth[0] + steps**2 * growth[1]
+
+
+def _phase_weights(magnitude, sigma, scale):
+    """Inverse variances (rad**-2) of crest phases measured with amplitude ``magnitude``
+    and standard deviation ``sigma`` in each of the window's two components.
+
+    The phase error is about B/A with A ~ N(y, sigma**2), B ~ N(0, sigma**2): its variance
+    is sigma**2/y**2 * (1 + 3*sigma**2/y**2) to second order, and y**2 is estimated without
+    the Rician bias as magnitude**2 - 2*sigma**2 (the weight is 0 where that is <= 0).
+    """
+    floor = (1e-9 * np.max(scale, initial=0.0)) ** 2 + 1e-300  # a noise-free record
+    variance = np.maximum(sigma**2, floor)
+    square = np.maximum(magnitude**2 - 2.0 * variance, 0.0)
+    return square**2 / (variance * (square + 3.0 * variance))
 
 
 def _crest_sequence(times, signs, half, weights, limit):
-    """Every crest from the first measured one to ``limit``: smoothed times and signs.
+    """Every crest from the first measured one to ``limit``: smoothed times, signs and the
+    variance of each smoothed phase (rad**2; NaN where unknown).
 
-    ``times`` are measured crest times, ``weights`` their inverse variances up to a common
-    factor (0: not measured). Crests missed in between (noise) are filled in, and the
+    ``times`` are measured crest times, ``weights`` the inverse variances of their phases
+    (rad**-2; 0: not measured). Crests missed in between (noise) are filled in, and the
     sequence goes on past the last crest found, at the local half-period, to ``limit``.
     """
     if np.count_nonzero(weights > 0) < 3:
-        return times, signs
+        return times, signs, np.full(times.size, np.nan)
     numbers = _crest_numbers(times, signs, half)
     count = int(numbers[-1]) + 1
-    smooth, step = _smooth_crest_times(numbers, times, weights, count)
+    smooth, step, variance, growth = _smooth_crest_times(numbers, times, weights, count)
     if step > 0 and smooth[-1] < limit:
         extra = int(np.floor((limit - smooth[-1]) / step))
         if extra > 0:
             smooth = np.concatenate([smooth, smooth[-1] + step * np.arange(1, extra + 1)])
+            last = int(numbers[weights > 0][-1])
+            variance = np.concatenate([variance, _continued_variance(
+                variance[last], growth, np.arange(count, count + extra) - last)])
     grid = np.arange(smooth.size)
     crest_signs = np.where(grid % 2 == 0, signs[0], -signs[0]).astype(signs.dtype)
     ordered = np.concatenate([[True], np.diff(smooth) > 0])
-    return smooth[ordered], crest_signs[ordered]
+    return smooth[ordered], crest_signs[ordered], variance[ordered]
 
 
 def _decay_rates_at(crests, centres, magnitude, omega, reliable):
