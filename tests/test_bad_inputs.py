@@ -720,10 +720,12 @@ def test_interrupted_writer_keeps_the_finished_records(tmp_path, capsys):
 def test_ctrl_c_keeps_the_records_already_finished(tmp_path):
     """A real SIGINT to ``python -m mcfit`` in the middle of a batch."""
     files = []
+    # Records long enough (15000 samples) that the batch cannot end between the check for
+    # two finished lines and the signal, even on a loaded machine.
     for i in range(40):
         folder = tmp_path / f"r{i:02d}"
         folder.mkdir()
-        files.append(_decay_record(folder / f"run{i:02d}.csv", b=0.1, duration=60.0))
+        files.append(_decay_record(folder / f"run{i:02d}.csv", b=0.02, duration=300.0))
     out = tmp_path / "out.jsonl"
     process = subprocess.Popen(
         [sys.executable, "-m", "mcfit", *map(str, files), "--format", "json", "-o", str(out)],

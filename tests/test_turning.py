@@ -125,6 +125,27 @@ def test_the_last_crests_of_a_record_ending_near_the_noise_are_unbiased(rng):
     assert np.std(z) == pytest.approx(1.0, abs=0.1)
 
 
+def test_a_displaced_crest_in_the_tail_does_not_shift_the_numbering():
+    # Crests every 0.25 s; the last two measured ones are faint, 0.58 and 0.45 rad off,
+    # after four crests lost in the noise, where the local half-period reads short (0.19).
+    # Counted by spacing, the gap takes 7 half-periods instead of 5 and every later crest
+    # is a period off; numbered against the well-measured crests, none is.
+    from mcfit.turning import _crest_sequence
+
+    number = np.concatenate([np.arange(70), [74, 75]])
+    truth = 0.1 + 0.25 * number
+    times = truth + np.concatenate([np.zeros(70), [0.58, -0.45]]) * 0.25 / np.pi
+    signs = np.where(number % 2 == 0, 1, -1)
+    weights = np.concatenate([np.full(60, 1e4), np.full(10, 50.0), [30.0, 22.0]])
+    half = np.where(number < 66, 0.25, 0.19)
+    crests, crest_signs, variance = _crest_sequence(times, signs, half, weights, limit=19.2)
+    expected = 0.1 + 0.25 * np.arange(crests.size)
+    assert crests.size == 77
+    np.testing.assert_allclose(crests, expected, atol=0.03)
+    np.testing.assert_array_equal(crest_signs, np.where(np.arange(77) % 2 == 0, 1, -1))
+    assert np.all(np.diff(variance[60:]) > 0)  # the phase grows less certain into the tail
+
+
 def test_noise_floor_points_are_excluded(rng):
     # A sustained small vibration the decay sinks into: the envelope flattens.
     law = (1.0, 0.0, 0.12, 0.0)

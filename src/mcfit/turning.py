@@ -620,6 +620,12 @@ _PHASE_HALF_WIDTH = 10
 # Beyond this phase variance (rad**2) a crest's phase is mostly noise: its projection's
 # bias is corrected no further.
 _LARGEST_PHASE_VARIANCE = 1.0
+# Crests whose phase is known to 0.1 rad (inverse variance 100 rad**-2) are numbered
+# reliably by their spacing; the others are numbered against them (_renumbered).
+_RELIABLE_PHASE_WEIGHT = 100.0
+# A smoothed crest phase this certain (rad**2) keeps the local quadratic, which follows an
+# amplitude-dependent period without bias, whatever a line's variance.
+_CERTAIN_PHASE_VARIANCE = 1e-3
 
 
 def _crest_numbers(times, signs, half):
@@ -688,11 +694,17 @@ def _smooth_crest_times(numbers, times, weights, count):
         linear = (points >= 2) & (det2 > 1e-12 * moment[0] ** 2)
         inverse2 = np.zeros((count, 2, 2))
         inverse2[linear] = np.linalg.inv(matrix2[linear])
-        # Where the quadratic is not determined, the line gives the crest time.
-        fill = ~quadratic & linear
-        row3[fill] = np.column_stack([inverse2[fill, 0], np.zeros(np.count_nonzero(fill))])
+        row2 = np.column_stack([inverse2[:, 0], np.zeros(count)])
+        variance2 = np.einsum("ij,ijk,ik->i", row2, spread3, row2)
+        variance3 = np.einsum("ij,ijk,ik->i", row3, spread3, row3)
+        # The line gives the crest time where the quadratic is not determined, or is far
+        # less certain than the line and not certain in itself (few crests measured on
+        # one side: an edge, or crests lost in the noise), where its curvature is noise.
+        fill = linear & ~(quadratic & ((variance3 <= 2.0 * variance2)
+                                       | (variance3 <= _CERTAIN_PHASE_VARIANCE)))
+        row3[fill] = row2[fill]
         smooth = np.einsum("ij,ji->i", row3, target)
-        variance = np.einsum("ij,ijk,ik->i", row3, spread3, row3)
+        variance = np.where(fill, variance2, variance3)
         local_slope = np.einsum("ij,ji->i", inverse2[:, 1], target[:2])
     grid = np.arange(count)
     known = np.isfinite(smooth[:n_measured])
@@ -744,19 +756,58 @@ def _crest_sequence(times, signs, half, weights, limit):
     if np.count_nonzero(weights > 0) < 3:
         return times, signs, np.full(times.size, np.nan)
     numbers = _crest_numbers(times, signs, half)
+    first_sign = signs[0]
+    measured = weights > 0
+    numbers, times, weights = numbers[measured], times[measured], weights[measured]
+    signs = signs[measured]
+    reliable = weights >= min(_RELIABLE_PHASE_WEIGHT, 0.1 * float(np.max(weights)))
+    if np.count_nonzero(reliable) >= 3 and not reliable.all():
+        numbers, times, weights = _renumbered(numbers, times, signs, weights, reliable,
+                                              first_sign)
     count = int(numbers[-1]) + 1
     smooth, step, variance, growth = _smooth_crest_times(numbers, times, weights, count)
     if step > 0 and smooth[-1] < limit:
         extra = int(np.floor((limit - smooth[-1]) / step))
         if extra > 0:
             smooth = np.concatenate([smooth, smooth[-1] + step * np.arange(1, extra + 1)])
-            last = int(numbers[weights > 0][-1])
+            last = int(numbers[-1])
             variance = np.concatenate([variance, _continued_variance(
                 variance[last], growth, np.arange(count, count + extra) - last)])
     grid = np.arange(smooth.size)
-    crest_signs = np.where(grid % 2 == 0, signs[0], -signs[0]).astype(signs.dtype)
+    crest_signs = np.where(grid % 2 == 0, first_sign, -first_sign).astype(signs.dtype)
     ordered = np.concatenate([[True], np.diff(smooth) > 0])
     return smooth[ordered], crest_signs[ordered], variance[ordered]
+
+
+def _renumbered(numbers, times, signs, weights, reliable, first_sign):
+    """(numbers, times, weights) of the measured crests, numbered by the smoothed times of
+    the reliable ones instead of by their spacing.
+
+    Numbering by spacing counts the half-periods between neighbours; in the faint tail one
+    crest displaced by noise can make it count one period too many, and every later crest
+    is then a period off. Here each crest takes the number of the nearest crest of its
+    sign on the curve through the reliable crests (continued straight past its ends); a
+    crest more than half a half-period from it, numbered < 0, or the weaker of two with
+    one number is dropped.
+    """
+    count = int(numbers[reliable][-1]) + 1
+    curve, end_step, _, _ = _smooth_crest_times(numbers[reliable], times[reliable],
+                                                weights[reliable], count)
+    grid = np.arange(count, dtype=np.float64)
+    position = np.interp(times, curve, grid)
+    start_step = curve[1] - curve[0]
+    before, after = times < curve[0], times > curve[-1]
+    position[before] = (times[before] - curve[0]) / start_step
+    position[after] = count - 1 + (times[after] - curve[-1]) / end_step
+    number = np.rint(position)
+    expected_sign = np.where(number % 2 == 0, first_sign, -first_sign)
+    number = np.where(expected_sign == signs, number,
+                      np.where(position > number, number + 1, number - 1))
+    keep = (number >= 0) & (np.abs(position - number) < 0.5)
+    # One crest per number: the best measured.
+    order = np.flatnonzero(keep)[np.lexsort((-weights[keep], number[keep]))]
+    order = order[np.concatenate([[True], np.diff(number[order]) > 0])]
+    return number[order].astype(np.int64), times[order], weights[order]
 
 
 def _decay_rates_at(crests, centres, magnitude, omega, reliable):
