@@ -9,7 +9,7 @@ import pytest
 
 from mcfit import decay
 from mcfit.errors import FitError
-from mcfit.fit import MODELS, fit_decay
+from mcfit.fit import LRT_ALPHA, MODELS, _boundary_lrt_p_value, fit_decay
 
 
 @pytest.fixture
@@ -85,6 +85,36 @@ def test_pure_noise_on_an_exponential_does_not_invent_terms():
         invented += result.model != "b"
     assert invented <= 3
 
+
+
+def test_two_terms_that_mimic_a_third_must_pass_a_joint_test():
+    """a*y**2 + c can stand in for part of b*y: on this pure exponential AICc picks abc and
+    each of a and c passes its one-term test inside abc, but together they do not beat b."""
+    t = np.arange(200) * 0.5
+    y = decay.amplitude(t, 1.0, 0.0, 0.02, 0.0) + np.random.default_rng(89).normal(0, 0.01, 200)
+    result = fit_decay(t, y, np.full(t.size, 0.01), period=1.0)
+    chi = {c.model: c.chi_square for c in result.candidates}
+    aicc = {c.model: c.aicc for c in result.candidates}
+    assert min(aicc, key=aicc.get) == "abc"
+    assert _boundary_lrt_p_value(chi["bc"], chi["abc"], t.size) < LRT_ALPHA
+    assert _boundary_lrt_p_value(chi["ab"], chi["abc"], t.size) < LRT_ALPHA
+    assert _boundary_lrt_p_value(chi["b"], chi["abc"], t.size, terms=2) > LRT_ALPHA
+    assert result.model == "b"
+    assert any(w.startswith("fluid and coulomb terms dropped") for w in result.warnings)
+
+
+@pytest.mark.parametrize("terms", [1, 2])
+@pytest.mark.parametrize("statistic", [0.1, 1.0, 5.41, 9.0, 30.0])
+def test_boundary_p_value_is_the_chi_bar_square_mixture(terms, statistic):
+    from scipy import stats
+
+    weights = {1: (0.5, 0.5), 2: (0.25, 0.5, 0.25)}[terms]
+    expected = sum(w * stats.chi2.sf(statistic, df) for df, w in enumerate(weights) if df)
+    n = 100
+    chi_square_with = 1.0
+    chi_square_without = math.exp(statistic / n)
+    assert _boundary_lrt_p_value(chi_square_without, chi_square_with, n, terms) == \
+        pytest.approx(expected, rel=1e-12)
 
 def test_the_same_record_in_other_units_gives_the_same_result(rng):
     t, y = _turning_points(4.0, 0.1, 0.1, 0.01, 0.5, 20.0)

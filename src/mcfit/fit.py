@@ -451,13 +451,24 @@ def _information_criteria(chi_square, n_points, n_params):
     return aicc, bic
 
 
-def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points):
-    """p-value of adding one term >= 0: the statistic follows 0.5*chi2(0) + 0.5*chi2(1)."""
+def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points, terms=1):
+    """p-value of adding ``terms`` (1 or 2) coefficients >= 0.
+
+    Each sits on its bound under the null, so the statistic follows the chi-bar-square
+    mixture: 0.5*chi2(0) + 0.5*chi2(1) for one term, 0.25*chi2(0) + 0.5*chi2(1) +
+    0.25*chi2(2) for two (the weights of uncorrelated terms).
+    """
     statistic = n_points * math.log(max(chi_square_without, 1e-300) / max(chi_square_with, 1e-300))
     if statistic <= 0:
         return 1.0
-    # chi2(1).sf(x) = erfc(sqrt(x/2)), without scipy.stats' per-call cost.
-    return 0.5 * math.erfc(math.sqrt(0.5 * statistic))
+    # chi2(1).sf(x) = erfc(sqrt(x/2)) and chi2(2).sf(x) = exp(-x/2), without scipy.stats'
+    # per-call cost.
+    one = math.erfc(math.sqrt(0.5 * statistic))
+    if terms == 1:
+        return 0.5 * one
+    if terms == 2:
+        return 0.5 * one + 0.25 * math.exp(-0.5 * statistic)
+    raise ValueError("terms must be 1 or 2")
 
 
 def _lag_one_autocorrelation(residuals):
@@ -583,16 +594,25 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
     by_score = {c.model: getattr(c, criterion) for c in candidates.values()}
     if model is None:
         chosen = min(by_score, key=by_score.get)
-        # Each kept term must also survive the boundary likelihood-ratio test.
+        # The kept terms must also survive the boundary likelihood-ratio test against every
+        # smaller model, alone and together: two terms that mimic a third between them
+        # (a*y**2 + c against b*y) each pass a test of one term, but not the joint test.
         while len(chosen) > 1:
-            p_values = {k: _boundary_lrt_p_value(fits[chosen.replace(k, "")][3], fits[chosen][3], n)
-                        for k in chosen}
-            weakest = max(p_values, key=p_values.get)
+            p_values = {smaller: _boundary_lrt_p_value(fits[smaller][3], fits[chosen][3], n,
+                                                       len(chosen) - len(smaller))
+                        for smaller in MODELS if len(smaller) < len(chosen)
+                        and set(smaller) <= set(chosen)}
+            weakest = max(p_values, key=lambda m: (p_values[m], -by_score[m]))
             if p_values[weakest] < LRT_ALPHA:
                 break
-            warnings.append(f"{REGIME_NAMES[weakest]} term dropped: {criterion} kept it but the "
-                            f"likelihood-ratio test does not support it (p = {p_values[weakest]:.3g})")
-            chosen = chosen.replace(weakest, "")
+            dropped = [k for k in chosen if k not in weakest]
+            names = " and ".join(REGIME_NAMES[k] for k in dropped)
+            warnings.append(f"{names} term{'s' if len(dropped) > 1 else ''} dropped: "
+                            f"{criterion} kept {'them' if len(dropped) > 1 else 'it'} but the "
+                            f"likelihood-ratio test does not support "
+                            f"{'them' if len(dropped) > 1 else 'it'} "
+                            f"(p = {p_values[weakest]:.3g})")
+            chosen = weakest
     else:
         chosen = model
     # The reported fit is lmfit's, started where the ranking stopped (refined): it
