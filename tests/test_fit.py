@@ -103,18 +103,24 @@ def test_two_terms_that_mimic_a_third_must_pass_a_joint_test():
     assert any(w.startswith("fluid and coulomb terms dropped") for w in result.warnings)
 
 
-@pytest.mark.parametrize("terms", [1, 2])
+@pytest.mark.parametrize(("terms", "correlation"),
+                         [(1, 0.0), (2, 0.0), (2, 0.94), (2, -0.6), (2, 1.0)])
 @pytest.mark.parametrize("statistic", [0.1, 1.0, 5.41, 9.0, 30.0])
-def test_boundary_p_value_is_the_chi_bar_square_mixture(terms, statistic):
+def test_boundary_p_value_is_the_chi_bar_square_mixture(terms, correlation, statistic):
     from scipy import stats
 
-    weights = {1: (0.5, 0.5), 2: (0.25, 0.5, 0.25)}[terms]
+    if terms == 1:
+        weights = (0.5, 0.5)
+    else:  # the chance that two estimates with this correlation are both > 0
+        both = stats.multivariate_normal([0, 0], [[1, correlation], [correlation, 1]],
+                                         allow_singular=True).cdf([0, 0])
+        weights = (0.5 - both, 0.5, both)
     expected = sum(w * stats.chi2.sf(statistic, df) for df, w in enumerate(weights) if df)
     n = 100
     chi_square_with = 1.0
     chi_square_without = math.exp(statistic / n)
-    assert _boundary_lrt_p_value(chi_square_without, chi_square_with, n, terms) == \
-        pytest.approx(expected, rel=1e-12)
+    assert _boundary_lrt_p_value(chi_square_without, chi_square_with, n, terms,
+                                 correlation) == pytest.approx(expected, rel=1e-6)
 
 def test_the_same_record_in_other_units_gives_the_same_result(rng):
     t, y = _turning_points(4.0, 0.1, 0.1, 0.01, 0.5, 20.0)
@@ -258,7 +264,8 @@ def test_non_positive_tail_with_forced_models_and_bootstrap(rng):
     t, y = _noisy_tail(rng, 1.0, 0.0, 0.05, 0.0, 1.0, 150.0, 3e-3)
     assert np.any(y <= 0)
     boot = fit_decay(t, y, period=1.0, model="b", bootstrap=30, rng=rng)
-    assert boot.bootstrap["n"] == 30  # no draw is dropped for holding values <= 0
+    # Every draw is refitted, values <= 0 and all: none is dropped, none fails.
+    assert boot.bootstrap["n"] == 30 and boot.bootstrap["failed"] == 0
     low, high = boot.bootstrap["interval_95"]["b"]
     assert low < boot.values["b"] < high
     assert high - low == pytest.approx(2 * 1.96 * boot.stderr["b"], rel=0.5)

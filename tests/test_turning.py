@@ -138,12 +138,33 @@ def test_a_displaced_crest_in_the_tail_does_not_shift_the_numbering():
     signs = np.where(number % 2 == 0, 1, -1)
     weights = np.concatenate([np.full(60, 1e4), np.full(10, 50.0), [30.0, 22.0]])
     half = np.where(number < 66, 0.25, 0.19)
-    crests, crest_signs, variance = _crest_sequence(times, signs, half, weights, limit=19.2)
+    crests, crest_signs, variance, lost = _crest_sequence(times, signs, half, weights,
+                                                          limit=19.2)
     expected = 0.1 + 0.25 * np.arange(crests.size)
     assert crests.size == 77
     np.testing.assert_allclose(crests, expected, atol=0.03)
     np.testing.assert_array_equal(crest_signs, np.where(np.arange(77) % 2 == 0, 1, -1))
     assert np.all(np.diff(variance[60:]) > 0)  # the phase grows less certain into the tail
+    assert lost is None
+
+
+def test_the_crest_sequence_stops_where_its_phase_is_lost():
+    # Bright crests, then faint ones, then one faint crest alone far beyond: it is left out
+    # (alone it fixes neither time nor slope), and the sequence continues from the faint
+    # crests only while its phase is known to 1 rad.
+    from mcfit.turning import _LARGEST_PHASE_VARIANCE, _crest_sequence
+
+    number = np.concatenate([np.arange(70), [95]])
+    times = 0.1 + 0.25 * number
+    signs = np.where(number % 2 == 0, 1, -1)
+    weights = np.concatenate([np.full(60, 1e4), np.full(10, 30.0), [30.0]])
+    crests, _, variance, lost = _crest_sequence(times, signs, np.full(71, 0.25), weights,
+                                                limit=50.0)
+    assert np.all(np.isfinite(variance))
+    assert np.all(variance <= _LARGEST_PHASE_VARIANCE)
+    assert 70 < crests.size < 196
+    assert lost == pytest.approx(crests[-1] + 0.25)
+    np.testing.assert_allclose(crests, 0.1 + 0.25 * np.arange(crests.size), atol=1e-9)
 
 
 def test_noise_floor_points_are_excluded(rng):

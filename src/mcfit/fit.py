@@ -65,8 +65,9 @@ class Candidate:
     bic: float
     success: bool
     values: dict
-    # Evaluations of the law by the solvers; 0 when the optimum is a smaller model's (a
-    # term the record does not want stays at 0, see _rank_subset).
+    # Evaluations of the law by the solvers (where the optimum is a smaller model's, a term
+    # the record does not want at 0, those Levenberg-Marquardt spent finding that out; see
+    # _rank_subset).
     evaluations: int
 
     def to_dict(self) -> dict:
@@ -137,12 +138,13 @@ class DecayFit:
 
 
 class _Scaled:
-    """The record in internal units: time from t0 over the span, amplitude over max(y)."""
+    """The record in internal units: time from t0 over the span, amplitude over max|y|
+    (a tail in the noise can reach below -max(y))."""
 
     def __init__(self, t, y, sigma):
         self.t0 = t[0]
         self.time_unit = t[-1] - t[0]
-        self.amplitude_unit = float(np.max(y))
+        self.amplitude_unit = float(np.max(np.abs(y)))
         self.t = (t - self.t0) / self.time_unit
         self.y = y / self.amplitude_unit
         self.weights = self.amplitude_unit / sigma
@@ -200,7 +202,7 @@ def _starting_values(scaled, terms):
         if k in terms and start[k] <= 0:
             start[k] = floor * rate_scale
     if start["y0"] <= 0:
-        start["y0"] = y[0] if y[0] > 0 else 1.0  # 1 is the largest amplitude
+        start["y0"] = y[0] if y[0] > 0 else 1.0  # 1 is the largest |amplitude|
     return start
 
 
@@ -313,8 +315,9 @@ def _levenberg_marquardt(problem, start):
     """MINPACK's Levenberg-Marquardt (through scipy) on ``problem`` from ``start``, in the
     same coordinates as the bounded solver, abandoned if it tries a parameter < 0.
 
-    Returns (free values or None, lowest chi-square seen (record weights), evaluations).
-    The free values are given only if a MINPACK convergence test passed inside the bounds.
+    Returns (free values or None, lowest chi-square seen (record weights), evaluations,
+    left the bounds). The free values are given only if a MINPACK convergence test passed
+    inside the bounds.
     """
     seen = {"evaluations": 0, "lowest": math.inf}
     scale = problem.chi_square_scale
@@ -341,9 +344,9 @@ def _levenberg_marquardt(problem, start):
                 residual, start[problem.columns], Dfun=jacobian, full_output=True,
                 maxfev=_RANKING_EVALUATIONS, **_RANKING_TOLERANCES)
     except _LeftTheBounds:
-        return None, seen["lowest"], seen["evaluations"]
+        return None, seen["lowest"], seen["evaluations"], True
     converged = status in (1, 2, 3, 4) and min(x) > 0
-    return (x if converged else None), seen["lowest"], seen["evaluations"]
+    return (x if converged else None), seen["lowest"], seen["evaluations"], False
 
 
 def _rank_subset(scaled, terms, ranked):
@@ -367,13 +370,13 @@ def _rank_subset(scaled, terms, ranked):
     problem = _Problem(scaled, terms)
     start = _starting_values(scaled, terms)
     start = np.array([start[k] for k in _NAMES])
-    free_values, lowest, evaluations = _levenberg_marquardt(problem, start)
+    free_values, lowest, evaluations, left = _levenberg_marquardt(problem, start)
     if free_values is not None:
         chi_square = problem.chi_square(free_values)
         if best_smaller is None or chi_square <= best_smaller[1]:
             return (problem.values(free_values), chi_square, True, evaluations,
                     problem.gradient(free_values))
-    elif best_smaller is not None and lowest >= best_smaller[1]:
+    elif left and best_smaller is not None and lowest >= best_smaller[1]:
         values, chi_square, ok, _, gradient = best_smaller
         at_bound = [_COLUMN[k] for k in terms if values[_COLUMN[k]] == 0]
         if all(gradient[column] >= 0 for column in at_bound):
@@ -455,12 +458,14 @@ def _information_criteria(chi_square, n_points, n_params):
     return aicc, bic
 
 
-def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points, terms=1):
+def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points, terms=1,
+                          correlation=0.0):
     """p-value of adding ``terms`` (1 or 2) coefficients >= 0.
 
-    Each sits on its bound under the null, so the statistic follows the chi-bar-square
-    mixture: 0.5*chi2(0) + 0.5*chi2(1) for one term, 0.25*chi2(0) + 0.5*chi2(1) +
-    0.25*chi2(2) for two (the weights of uncorrelated terms).
+    Each sits on its bound under the null, so the statistic follows a chi-bar-square
+    mixture: 0.5*chi2(0) + 0.5*chi2(1) for one term; for two whose estimates have
+    ``correlation`` rho, w*chi2(0) + 0.5*chi2(1) + (0.5 - w)*chi2(2) with
+    0.5 - w = 1/4 + asin(rho)/(2*pi), the chance that both estimates are > 0 (Kudo 1963).
     """
     statistic = n_points * math.log(max(chi_square_without, 1e-300) / max(chi_square_with, 1e-300))
     if statistic <= 0:
@@ -471,8 +476,22 @@ def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points, terms=1
     if terms == 1:
         return 0.5 * one
     if terms == 2:
-        return 0.5 * one + 0.25 * math.exp(-0.5 * statistic)
+        rho = min(1.0, max(-1.0, correlation)) if math.isfinite(correlation) else 0.0
+        both = 0.25 + math.asin(rho) / (2.0 * math.pi)
+        return 0.5 * one + both * math.exp(-0.5 * statistic)
     raise ValueError("terms must be 1 or 2")
+
+
+def _correlation(scaled, model, values, first, second):
+    """Correlation of the estimates of terms ``first`` and ``second`` in ``model`` at
+    ``values`` (y0, a, b, c; internal units); 0 where the covariance is singular."""
+    problem = _Problem(scaled, model)
+    covariance = problem.covariance(values[problem.columns])
+    if covariance is None:
+        return 0.0
+    i, j = problem.free.index(first), problem.free.index(second)
+    denominator = math.sqrt(max(covariance[i, i] * covariance[j, j], 0.0))
+    return float(covariance[i, j] / denominator) if denominator > 0 else 0.0
 
 
 def _lag_one_autocorrelation(residuals):
@@ -602,10 +621,14 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
         # smaller model, alone and together: two terms that mimic a third between them
         # (a*y**2 + c against b*y) each pass a test of one term, but not the joint test.
         while len(chosen) > 1:
-            p_values = {smaller: _boundary_lrt_p_value(fits[smaller][3], fits[chosen][3], n,
-                                                       len(chosen) - len(smaller))
-                        for smaller in MODELS if len(smaller) < len(chosen)
-                        and set(smaller) <= set(chosen)}
+            p_values = {}
+            for smaller in MODELS:
+                if len(smaller) < len(chosen) and set(smaller) <= set(chosen):
+                    dropped = [k for k in chosen if k not in smaller]
+                    rho = (_correlation(scaled, chosen, fits[chosen][0], *dropped)
+                           if len(dropped) == 2 else 0.0)
+                    p_values[smaller] = _boundary_lrt_p_value(
+                        fits[smaller][3], fits[chosen][3], n, len(dropped), rho)
             weakest = max(p_values, key=lambda m: (p_values[m], -by_score[m]))
             if p_values[weakest] < LRT_ALPHA:
                 break
@@ -710,12 +733,18 @@ def _bootstrap(scaled, chosen, fitted, y_fit, y, sigma, omega, count, rng):
 
     Each refit starts from the fit (``fitted``: y0, a, b, c in internal units), in the same
     internal units. A draw may hold amplitudes <= 0 as the data may; the model stays >= 0.
+    A refit that does not converge is left out and counted (``failed``).
     """
     standardized = (y - y_fit) / sigma
     samples = []
+    failed = 0
     for _ in range(count):
         draw = y_fit + sigma * rng.choice(standardized, size=y.size, replace=True)
-        values = scaled.to_physical(_fit_subset(scaled.with_amplitudes(draw), chosen, fitted)[0])
+        refit = _fit_subset(scaled.with_amplitudes(draw), chosen, fitted)
+        if not refit[4]:
+            failed += 1
+            continue
+        values = scaled.to_physical(refit[0])
         row = list(values)
         if omega is not None:
             t_end = (scaled.t[-1]) * scaled.time_unit
@@ -727,14 +756,14 @@ def _bootstrap(scaled, chosen, fitted, y_fit, y, sigma, omega, count, rng):
     samples = np.array(samples)
     names = ["y0", "a", "b", "c"] + (["q_initial", "q_final"] if omega is not None else [])
     low, high = np.percentile(samples, [2.5, 97.5], axis=0)
-    return {"n": int(samples.shape[0]),
+    return {"n": int(samples.shape[0]), "failed": failed,
             "interval_95": {k: [float(lo), float(hi)] for k, lo, hi in zip(names, low, high)}}
 
 
 def _fit_power_law(scaled, t, y, sigma, omega, domain, criterion, noise_from_residuals):
     """Fit dy/dt = -k*y**n (Handbook Eq. 20.51) in internal units."""
     ts, ys, w = scaled.t, scaled.y, scaled.weights
-    first = ys[0] if ys[0] > 0 else 1.0  # 1 is the largest amplitude
+    first = ys[0] if ys[0] > 0 else 1.0  # 1 is the largest |amplitude|
     # The tail may be <= 0 (noise): then start from a decay to 1e-6 of the first amplitude.
     start_b = -math.log(max(ys[-1] / first, 1e-6)) / max(ts[-1], 1e-12)
     params = lmfit.Parameters()

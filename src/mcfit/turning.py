@@ -287,7 +287,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     limit = tf[-1] if floor_start is None else centres[floor_start] - 0.5 * period / 2
     half = _local_half_periods(centres, period, fit.valid)
     weights = np.where(measured, _phase_weights(magnitude, magnitude_sigma, magnitude), 0.0)
-    crests, crest_signs, phase_variance = _crest_sequence(
+    crests, crest_signs, phase_variance, phase_lost = _crest_sequence(
         centres[:end] + np.where(fit.valid, fit.shift, 0.0)[:end], signs[:end], half[:end],
         weights[:end], limit)
     reliable = measured & before_floor & (magnitude > 5 * magnitude_sigma)
@@ -304,10 +304,16 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     # A phase error d scales a projection by cos(d), on average by exp(-var(d)/2) for a
     # Gaussian error: undone here. It matters in the faint tail, where the crest times are
     # least certain (there var(d) reaches about 0.1 at a few sigma).
-    phase_gain = np.exp(0.5 * np.minimum(np.nan_to_num(phase_variance, nan=0.0),
-                                         _LARGEST_PHASE_VARIANCE))
+    variance_d = np.minimum(np.nan_to_num(phase_variance, nan=0.0), _LARGEST_PHASE_VARIANCE)
+    phase_gain = np.exp(0.5 * variance_d)
     y = projected.projection * phase_gain
     sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain) * phase_gain
+    # The phase error also scatters the projection: var(y*cos(d)) = y**2*(1 - e**-v)**2/2,
+    # here with y**2 estimated without the noise's share.
+    with np.errstate(invalid="ignore"):
+        signal_square = np.maximum(y**2 - sigma_y**2, 0.0)
+    sigma_y = np.sqrt(sigma_y**2 + signal_square * (1.0 - np.exp(-variance_d)) ** 2
+                      * phase_gain**2 / 2.0)
     log_step = crest_gamma[0] * crest_half
     reasons = np.array([""] * crests.size, dtype=object)
     reasons[~projected.complete] = np.where(projected.edge[~projected.complete], "edge", "gap")
@@ -340,6 +346,13 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
             notes.append(f"noise floor: the oscillation is lost in the noise (amplitude "
                          f"sigma {floor_level:.3g}); {int(in_floor.sum())} turning points from "
                          f"t = {floor_time:.6g} excluded")
+        elif phase_lost is not None:
+            floor_time = phase_lost
+            floor_level = float(np.median(sigma_y[reasons == ""])) if np.any(reasons == "") \
+                else 0.0
+            notes.append(f"noise floor: the crest phase is lost in the noise from "
+                         f"t = {floor_time:.6g} (amplitude sigma {floor_level:.3g}); the "
+                         "record after it is not used")
     scatter = _amplitude_scatter(y, sigma_y, log_step, reasons == "")
     white = float(np.sqrt(np.median(sigma_y[reasons == ""] ** 2))) if np.any(reasons == "") \
         else float("nan")
@@ -710,8 +723,11 @@ def _smooth_crest_times(numbers, times, weights, count):
     known = np.isfinite(smooth[:n_measured])
     if not known.any():
         return origin + grid * slope, slope, np.full(count, np.nan), (np.nan, np.nan)
-    smooth[:n_measured] = np.interp(grid[:n_measured], grid[:n_measured][known],
-                                    smooth[:n_measured][known])
+    # Across a stretch with no measured crest in reach, both are interpolated (the variance
+    # a little low there).
+    for values in (smooth, variance):
+        values[:n_measured] = np.interp(grid[:n_measured], grid[:n_measured][known],
+                                        values[:n_measured][known])
     tail_slope = local_slope[last] if linear[last] else 0.0
     growth = (np.nan, np.nan)
     if linear[last] and np.isfinite(smooth[last]):
@@ -746,15 +762,19 @@ def _phase_weights(magnitude, sigma, scale):
 
 
 def _crest_sequence(times, signs, half, weights, limit):
-    """Every crest from the first measured one to ``limit``: smoothed times, signs and the
-    variance of each smoothed phase (rad**2; NaN where unknown).
+    """Every crest from the first measured one to ``limit``: smoothed times, signs, the
+    variance of each smoothed phase (rad**2; NaN where unknown), and the time of the first
+    crest left out because its phase is lost (None if none is).
 
     ``times`` are measured crest times, ``weights`` the inverse variances of their phases
     (rad**-2; 0: not measured). Crests missed in between (noise) are filled in, and the
-    sequence goes on past the last crest found, at the local half-period, to ``limit``.
+    sequence goes on past the last crest found, at the local half-period, to ``limit`` or
+    until its phase variance passes _LARGEST_PHASE_VARIANCE (the phase is lost there).
+    A measured crest with no other within the smoother's reach is left out: alone, it
+    sets neither time nor slope.
     """
     if np.count_nonzero(weights > 0) < 3:
-        return times, signs, np.full(times.size, np.nan)
+        return times, signs, np.full(times.size, np.nan), None
     numbers = _crest_numbers(times, signs, half)
     first_sign = signs[0]
     measured = weights > 0
@@ -764,19 +784,30 @@ def _crest_sequence(times, signs, half, weights, limit):
     if np.count_nonzero(reliable) >= 3 and not reliable.all():
         numbers, times, weights = _renumbered(numbers, times, signs, weights, reliable,
                                               first_sign)
+    gaps = np.diff(numbers)
+    accompanied = np.minimum(np.concatenate([[np.inf], gaps]),
+                             np.concatenate([gaps, [np.inf]])) <= _PHASE_HALF_WIDTH
+    if np.count_nonzero(accompanied) >= 3:
+        numbers, times, weights = numbers[accompanied], times[accompanied], weights[accompanied]
     count = int(numbers[-1]) + 1
     smooth, step, variance, growth = _smooth_crest_times(numbers, times, weights, count)
+    phase_lost = None
     if step > 0 and smooth[-1] < limit:
         extra = int(np.floor((limit - smooth[-1]) / step))
         if extra > 0:
-            smooth = np.concatenate([smooth, smooth[-1] + step * np.arange(1, extra + 1)])
             last = int(numbers[-1])
-            variance = np.concatenate([variance, _continued_variance(
-                variance[last], growth, np.arange(count, count + extra) - last)])
+            more = _continued_variance(variance[last], growth,
+                                       np.arange(count, count + extra) - last)
+            lost = np.flatnonzero(more > _LARGEST_PHASE_VARIANCE)
+            if lost.size:  # not past the crest where the phase is lost
+                extra = int(lost[0])
+                phase_lost = float(smooth[-1] + step * (extra + 1))
+            smooth = np.concatenate([smooth, smooth[-1] + step * np.arange(1, extra + 1)])
+            variance = np.concatenate([variance, more[:extra]])
     grid = np.arange(smooth.size)
     crest_signs = np.where(grid % 2 == 0, first_sign, -first_sign).astype(signs.dtype)
     ordered = np.concatenate([[True], np.diff(smooth) > 0])
-    return smooth[ordered], crest_signs[ordered], variance[ordered]
+    return smooth[ordered], crest_signs[ordered], variance[ordered], phase_lost
 
 
 def _renumbered(numbers, times, signs, weights, reliable, first_sign):
@@ -800,10 +831,10 @@ def _renumbered(numbers, times, signs, weights, reliable, first_sign):
     position[before] = (times[before] - curve[0]) / start_step
     position[after] = count - 1 + (times[after] - curve[-1]) / end_step
     number = np.rint(position)
+    # A crest of the wrong sign for its nearest number is more than half a half-period
+    # from any crest of its own sign.
     expected_sign = np.where(number % 2 == 0, first_sign, -first_sign)
-    number = np.where(expected_sign == signs, number,
-                      np.where(position > number, number + 1, number - 1))
-    keep = (number >= 0) & (np.abs(position - number) < 0.5)
+    keep = (number >= 0) & (expected_sign == signs)
     # One crest per number: the best measured.
     order = np.flatnonzero(keep)[np.lexsort((-weights[keep], number[keep]))]
     order = order[np.concatenate([[True], np.diff(number[order]) > 0])]
