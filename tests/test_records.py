@@ -20,10 +20,17 @@ X = np.round(0.4 + np.exp(-0.1 * T) * np.cos(2 * np.pi * T), 6)
 VELOCITY = np.round(-2 * np.pi * np.exp(-0.1 * T) * np.sin(2 * np.pi * T), 6)
 
 
+@pytest.fixture(autouse=True)
+def _in_tmp_path(tmp_path, monkeypatch):
+    # Records are named relative to tmp_path, as a person in that folder would name them:
+    # messages quote the path as given.
+    monkeypatch.chdir(tmp_path)
+
+
 def write(tmp_path, name, text, encoding="utf-8"):
-    path = tmp_path / name
-    path.write_bytes(text.encode(encoding))
-    return path
+    """``text`` written to ``tmp_path/name``; returns the path relative to tmp_path."""
+    (tmp_path / name).write_bytes(text.encode(encoding))
+    return Path(name)
 
 
 def rows(sep, decimal=".", columns=(T, X)):
@@ -137,7 +144,7 @@ def test_stdin_and_streams(tmp_path, monkeypatch):
 
 def test_excel_with_sheets(tmp_path):
     import pandas as pd
-    path = tmp_path / "book.xlsx"
+    path = Path("book.xlsx")
     with pd.ExcelWriter(path) as writer:
         pd.DataFrame({"note": ["x"]}).to_excel(writer, sheet_name="info", index=False)
         pd.DataFrame({"time (s)": T, "angle": X}).to_excel(writer, sheet_name="run", index=False)

@@ -193,7 +193,7 @@ def _open_table(source, sheet):
     if isinstance(source, str) and source == "-":
         return _text_table("<stdin>", _to_bytes(sys.stdin.buffer.read()), None)
     path = Path(source)
-    name = path.name
+    name = str(source)  # as given: in a batch, file names alone can be ambiguous
     try:
         mode = path.stat().st_mode
     except FileNotFoundError:
