@@ -924,8 +924,8 @@ def plot_fitting(cells, config: BenchConfig, path) -> None:
             axes.yaxis.set_major_formatter(_PlainLogFormatter())
             axes.yaxis.set_minor_formatter(_PlainLogFormatter(labelOnlyBase=False,
                                                               minor_thresholds=(1, 0.5)))
-            axes.set_title(f"true model {scene.model}, {spc + SAMPLING_OFFSET:g} samples/cycle",
-                           fontsize=9)
+            axes.set_title(f"{scene.name}\n(true model {scene.model}), "
+                           f"{spc + SAMPLING_OFFSET:g} samples/cycle", fontsize=8)
             axes.set_xlabel("SNR = y0 / sigma_x")
             axes.grid(True, which="major", alpha=0.3)
         row[0].set_ylabel("RMSE / Cramer-Rao bound")
