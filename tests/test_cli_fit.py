@@ -101,6 +101,24 @@ def test_batch_with_a_bad_file_keeps_going_and_exits_1(runner, tmp_path, rng):
     assert result.stderr.count("Error:") == 1 and "Traceback" not in result.output
 
 
+
+def test_a_failed_record_is_said_once_in_text_and_kept_in_a_report_file(runner, tmp_path,
+                                                                       rng):
+    good = _write_record(tmp_path / "a.csv", rng)
+    bad = tmp_path / "b.csv"
+    bad.write_text("t,x\n")
+    result = runner.invoke(cli, [str(bad), str(good)])
+    assert result.exit_code == 1
+    assert result.stderr.count("\n") == 1 and result.stderr.startswith(f"Error: {bad}")
+    assert result.stdout.startswith(f"mcfit report: {good}\n")  # no block for b.csv
+    assert "b.csv" not in result.stdout
+    report = tmp_path / "report.txt"
+    result = runner.invoke(cli, [str(bad), str(good), "-o", str(report)])
+    assert result.exit_code == 1
+    blocks = report.read_text().split("\n\nmcfit report: ")
+    assert blocks[0].startswith(f"mcfit report: {bad}\n  status: error: {bad}")
+    assert blocks[1].startswith(f"{good}\n")
+
 def test_csv_output_has_the_contract_columns_once(runner, tmp_path, rng):
     files = [str(_write_record(tmp_path / f"r{i}.csv", rng)) for i in range(2)]
     result = runner.invoke(cli, [*files, "--format", "csv"])

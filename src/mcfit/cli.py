@@ -330,7 +330,7 @@ def _write_results(results, sources, output_format, output):
         stream, temporary = sys.stdout, None
     else:
         stream, temporary = _open_output(output)
-    failures = done = 0
+    failures = done = written = 0
     show_progress = total > 1 and sys.stderr.isatty()
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
                 if show_progress else None)
@@ -351,8 +351,12 @@ def _write_results(results, sources, output_format, output):
                 stream.write(result.output + "\n" if total > 1 else _pretty_json(result.output))
             elif output_format == "csv":
                 stream.write(result.output)
-            else:
-                stream.write(result.output + ("\n" if done < total else ""))
+            elif result.status == "ok" or temporary is not None:
+                # On a terminal the Error line above says all a failed record's report
+                # would; a report file (-o) keeps it, so that the file accounts for every
+                # record.
+                stream.write(("\n" if written else "") + result.output)
+                written += 1
             stream.flush()
             if progress is not None:
                 progress.update(1)
