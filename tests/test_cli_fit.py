@@ -101,7 +101,6 @@ def test_batch_with_a_bad_file_keeps_going_and_exits_1(runner, tmp_path, rng):
     assert result.stderr.count("Error:") == 1 and "Traceback" not in result.output
 
 
-
 def test_a_failed_record_is_said_once_in_text_and_kept_in_a_report_file(runner, tmp_path,
                                                                        rng):
     good = _write_record(tmp_path / "a.csv", rng)
@@ -118,6 +117,7 @@ def test_a_failed_record_is_said_once_in_text_and_kept_in_a_report_file(runner, 
     blocks = report.read_text().split("\n\nmcfit report: ")
     assert blocks[0].startswith(f"mcfit report: {bad}\n  status: error: {bad}")
     assert blocks[1].startswith(f"{good}\n")
+
 
 def test_csv_output_has_the_contract_columns_once(runner, tmp_path, rng):
     files = [str(_write_record(tmp_path / f"r{i}.csv", rng)) for i in range(2)]

@@ -199,6 +199,16 @@ def test_bad_inputs(tmp_path, name, text, message):
     assert info.value.exit_code != 0
 
 
+def test_messages_name_a_record_by_its_path_as_given(tmp_path):
+    (tmp_path / "run2").mkdir()
+    path = write(tmp_path, "run2/run3.csv", "t,y\n" + rows(","))
+    with pytest.raises(UsageError, match="^column 'x' not found in run2/run3.csv;"):
+        read_record(path, signal_col="x")
+    with pytest.raises(UsageError, match="^column 'x' not found in run2/run3.csv;"), \
+            open(path, "rb") as stream:
+        read_record(stream, signal_col="x")
+
+
 def test_unknown_column(tmp_path):
     path = write(tmp_path, "run3.csv", "t,y\n" + rows(","))
     with pytest.raises(UsageError, match="^column 'x' not found in run3.csv; columns are: t, "

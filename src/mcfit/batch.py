@@ -158,6 +158,12 @@ def _display_name(source) -> str:
     return "<stdin>" if source == "-" else str(source)
 
 
+def _figure_title(source: str, longest: int = 60) -> str:
+    """The record's path as given (records of one name in two folders differ), its end
+    only when it is too long for the figure's title."""
+    return source if len(source) <= longest else "..." + source[-(longest - 3):]
+
+
 def _plot(analysis, path):
     import numpy as np
 
@@ -175,7 +181,7 @@ def _plot(analysis, path):
     time_label = ("cycle number n" if record.domain == "cycle"
                   else f"time ({record.time_unit or 's'})")
     signal_label = record.signal_unit or record.signal_column or "signal"
-    view = RecordView(title=Path(analysis.source).name, t=t, x=x, equilibrium=equilibrium,
+    view = RecordView(title=_figure_title(analysis.source), t=t, x=x, equilibrium=equilibrium,
                       turning_t=np.asarray(turning.t), turning_x=np.asarray(turning_x),
                       used=np.asarray(turning.used), time_label=time_label,
                       signal_label=signal_label, signal_unit=record.signal_unit or "U")

@@ -210,7 +210,9 @@ Diagnostics and progress go to stderr.
 \b
 Exit codes:
   0  every record was fitted
-  1  at least one record failed (its row says why; the others are still reported)
+  1  at least one record failed: an Error line on stderr says why (so does its
+     JSON or CSV row, and its block in a text report written with -o); the
+     others are still reported
   2  usage error (bad or contradictory options); an option that one file
      cannot satisfy (a column it lacks) fails that file instead (1)
 

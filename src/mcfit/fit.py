@@ -108,7 +108,7 @@ class DecayFit:
     q_stderr: np.ndarray | None = field(repr=False)
     q_parts: dict | None = field(repr=False)
     q_summary: dict | None = None
-    bootstrap: dict | None = None
+    bootstrap: dict | None = None  # {"n", "failed", "interval_95" (None if n == 0)}
     power_law: dict | None = None
     warnings: tuple = ()
     forced: bool = False  # the model was given (model=...), not chosen by the criterion
@@ -484,7 +484,8 @@ def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points, terms=1
 
 def _correlation(scaled, model, values, first, second):
     """Correlation of the estimates of terms ``first`` and ``second`` in ``model`` at
-    ``values`` (y0, a, b, c; internal units); 0 where the covariance is singular."""
+    ``values`` (y0, a, b, c; internal units), from the pseudo-inverse of J'J; 0 where a
+    variance is 0 or the inversion fails."""
     problem = _Problem(scaled, model)
     covariance = problem.covariance(values[problem.columns])
     if covariance is None:
@@ -686,6 +687,11 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
 
     boot = (_bootstrap(scaled, chosen, values, y_fit, y, sigma, omega, bootstrap, rng)
             if bootstrap else None)
+    if boot is not None and boot["failed"]:
+        warnings.append(f"{boot['failed']} of {bootstrap} bootstrap refits did not converge "
+                        "and are left out: the intervals may be too narrow"
+                        if boot["n"] else
+                        f"no bootstrap refit of {bootstrap} converged: no intervals")
     return DecayFit(
         status="ok" if ok else "error", message=None if ok else "the fit did not converge",
         model=chosen, domain=domain, criterion=criterion, t0=float(t[0]), omega=omega,
@@ -752,7 +758,7 @@ def _bootstrap(scaled, chosen, fitted, y_fit, y, sigma, omega, count, rng):
             row += list(decay.quality_factor(y_ends, omega, *values[1:]))
         samples.append(row)
     if not samples:
-        return None
+        return {"n": 0, "failed": failed, "interval_95": None}
     samples = np.array(samples)
     names = ["y0", "a", "b", "c"] + (["q_initial", "q_final"] if omega is not None else [])
     low, high = np.percentile(samples, [2.5, 97.5], axis=0)

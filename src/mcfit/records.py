@@ -14,7 +14,6 @@ column that oscillates (velocity, acceleration, residual and fit columns come la
 from __future__ import annotations
 
 import io
-import os
 import re
 import stat
 import sys
@@ -185,10 +184,8 @@ class _Table:
 def _open_table(source, sheet):
     if hasattr(source, "read"):
         data = source.read()
-        name = getattr(source, "name", None)
+        name = getattr(source, "name", None)  # an open file's path, as it was given
         name = name if isinstance(name, str) and not name.startswith("<") else "<stdin>"
-        if isinstance(name, str) and name != "<stdin>":
-            name = os.path.basename(name)
         return _text_table(name, _to_bytes(data), None)
     if isinstance(source, str) and source == "-":
         return _text_table("<stdin>", _to_bytes(sys.stdin.buffer.read()), None)

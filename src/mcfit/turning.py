@@ -309,10 +309,10 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     y = projected.projection * phase_gain
     sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain) * phase_gain
     # The phase error also scatters the projection: var(y*cos(d)) = y**2*(1 - e**-v)**2/2,
-    # here with y**2 estimated without the noise's share.
-    with np.errstate(invalid="ignore"):
-        signal_square = np.maximum(y**2 - sigma_y**2, 0.0)
-    sigma_y = np.sqrt(sigma_y**2 + signal_square * (1.0 - np.exp(-variance_d)) ** 2
+    # here with y from the running median of its neighbours: from the crest itself, a
+    # crest raised by noise would get a larger sigma and pull the fit down.
+    envelope = np.maximum(_running_median(y, 9), 0.0)
+    sigma_y = np.sqrt(sigma_y**2 + envelope**2 * (1.0 - np.exp(-variance_d)) ** 2
                       * phase_gain**2 / 2.0)
     log_step = crest_gamma[0] * crest_half
     reasons = np.array([""] * crests.size, dtype=object)
@@ -336,6 +336,9 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         notes.append(f"noise floor at amplitude {floor_level:.3g}: "
                      f"{int(np.count_nonzero(reasons == 'noise floor'))} turning points from "
                      f"t = {floor_time:.6g} excluded")
+        if phase_lost is not None and phase_lost < floor_time:
+            notes.append(f"the crest phase is lost in the noise from t = {phase_lost:.6g}: "
+                         f"the record from there to the noise floor is not used")
     else:
         cut = _sinks_below_noise(y, sigma_y, reasons == "")
         if cut is not None:
