@@ -289,6 +289,13 @@ def test_bootstrap_refits_that_fail_are_counted_and_said(rng, monkeypatch, faili
         assert any(w.startswith("3 of 6 bootstrap refits did not converge")
                    for w in result.warnings)
 
+
+def test_amplitudes_further_below_zero_than_above_fit_without_overflow():
+    # The internal unit is max|y|: with max(y) = 1e-200 the negative values overflowed.
+    result = fit_decay(np.arange(6.0), [1e-200, -1.0, -0.5, -0.2, -0.1, -0.05])
+    assert result.status == "ok"
+    assert all(math.isfinite(v) for v in result.values.values())
+
 def test_non_positive_tail_with_forced_models_and_bootstrap(rng):
     t, y = _noisy_tail(rng, 1.0, 0.0, 0.05, 0.0, 1.0, 150.0, 3e-3)
     assert np.any(y <= 0)
