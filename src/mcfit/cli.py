@@ -354,7 +354,7 @@ def _write_results(results, sources, output_format, output):
             elif output_format == "csv":
                 stream.write(result.output)
             elif result.status == "ok" or temporary is not None:
-                # On a terminal the Error line above says all a failed record's report
+                # On stdout the Error line above (stderr) says all a failed record's report
                 # would; a report file (-o) keeps it, so that the file accounts for every
                 # record.
                 stream.write(("\n" if written else "") + result.output)
