@@ -286,7 +286,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     end = int(np.count_nonzero(before_floor))
     limit = tf[-1] if floor_start is None else centres[floor_start] - 0.5 * period / 2
     half = _local_half_periods(centres, period, fit.valid)
-    weights = np.where(measured, _phase_weights(magnitude, magnitude_sigma, magnitude), 0.0)
+    weights = np.where(measured, _phase_weights(magnitude, magnitude_sigma), 0.0)
     crests, crest_signs, phase_variance, phase_lost = _crest_sequence(
         centres[:end] + np.where(fit.valid, fit.shift, 0.0)[:end], signs[:end], half[:end],
         weights[:end], limit)
@@ -750,7 +750,7 @@ def _continued_variance(variance, growth, steps):
     return variance + 2.0 * steps * growth[0] + steps**2 * growth[1]
 
 
-def _phase_weights(magnitude, sigma, scale):
+def _phase_weights(magnitude, sigma):
     """Inverse variances (rad**-2) of crest phases measured with amplitude ``magnitude``
     and standard deviation ``sigma`` in each of the window's two components.
 
@@ -758,7 +758,7 @@ def _phase_weights(magnitude, sigma, scale):
     is sigma**2/y**2 * (1 + 3*sigma**2/y**2) to second order, and y**2 is estimated without
     the Rician bias as magnitude**2 - 2*sigma**2 (the weight is 0 where that is <= 0).
     """
-    floor = (1e-9 * np.max(scale, initial=0.0)) ** 2 + 1e-300  # a noise-free record
+    floor = (1e-9 * np.max(magnitude, initial=0.0)) ** 2 + 1e-300  # a noise-free record
     variance = np.maximum(sigma**2, floor)
     square = np.maximum(magnitude**2 - 2.0 * variance, 0.0)
     return square**2 / (variance * (square + 3.0 * variance))
