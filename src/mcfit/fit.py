@@ -37,7 +37,7 @@ DEGENERATE_CORRELATION = 0.98
 MIN_POINTS = 4
 # Column of each parameter in decay.amplitude_jacobian.
 _COLUMN = {"y0": 0, "a": 1, "b": 2, "c": 3}
-_NAMES = ("y0", "a", "b", "c")
+_NAMES = tuple(_COLUMN)
 # Amplitudes and times beyond these cannot be squared and multiplied in float64.
 _LARGEST = 1e30
 _SMALLEST = 1e-30
@@ -482,17 +482,20 @@ def _boundary_lrt_p_value(chi_square_without, chi_square_with, n_points, terms=1
     raise ValueError("terms must be 1 or 2")
 
 
-def _correlation(scaled, model, values, first, second):
-    """Correlation of the estimates of terms ``first`` and ``second`` in ``model`` at
-    ``values`` (y0, a, b, c; internal units), from the pseudo-inverse of J'J; 0 where a
+def _correlations(scaled, model, values):
+    """Correlations of the estimates of ``model``'s terms at ``values`` (y0, a, b, c;
+    internal units), from the pseudo-inverse of J'J, as {(first, second): rho}; 0 where a
     variance is 0 or the inversion fails."""
     problem = _Problem(scaled, model)
     covariance = problem.covariance(values[problem.columns])
-    if covariance is None:
-        return 0.0
-    i, j = problem.free.index(first), problem.free.index(second)
-    denominator = math.sqrt(max(covariance[i, i] * covariance[j, j], 0.0))
-    return float(covariance[i, j] / denominator) if denominator > 0 else 0.0
+    pairs = {}
+    for first, second in itertools.combinations(model, 2):
+        i, j = problem.free.index(first), problem.free.index(second)
+        denominator = (math.sqrt(max(covariance[i, i] * covariance[j, j], 0.0))
+                       if covariance is not None else 0.0)
+        pairs[first, second] = (float(covariance[i, j] / denominator) if denominator > 0
+                                else 0.0)
+    return pairs
 
 
 def _lag_one_autocorrelation(residuals):
@@ -623,11 +626,12 @@ def fit_decay(t, y, sigma=None, *, period=None, domain="time", criterion="aicc",
         # (a*y**2 + c against b*y) each pass a test of one term, but not the joint test.
         while len(chosen) > 1:
             p_values = {}
+            rhos = (_correlations(scaled, chosen, fits[chosen][0]) if len(chosen) == 3
+                    else {})
             for smaller in MODELS:
                 if len(smaller) < len(chosen) and set(smaller) <= set(chosen):
                     dropped = [k for k in chosen if k not in smaller]
-                    rho = (_correlation(scaled, chosen, fits[chosen][0], *dropped)
-                           if len(dropped) == 2 else 0.0)
+                    rho = rhos[tuple(dropped)] if len(dropped) == 2 else 0.0
                     p_values[smaller] = _boundary_lrt_p_value(
                         fits[smaller][3], fits[chosen][3], n, len(dropped), rho)
             weakest = max(p_values, key=lambda m: (p_values[m], -by_score[m]))
