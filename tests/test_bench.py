@@ -50,6 +50,12 @@ def test_every_section_runs_and_writes_the_plots(tmp_path):
     throughput = blocks[-1]
     assert throughput.startswith("Throughput:")
     assert throughput.count(" 2/2") == 3  # in memory, mcfit DIR --jobs 1 and 2: both fitted
+    stages = throughput.split("by record length:")[1].split("\n\n")[0].splitlines()[2:]
+    assert [int(row.split()[0]) for row in stages] == [200, 2000]
+    for row in stages:  # turning points + fit = total > 0, and records/s its inverse
+        turning, fitting, total, rate = map(float, row.split()[1:])
+        assert total == pytest.approx(turning + fitting, abs=0.11) and total > 0
+        assert rate == pytest.approx(1e3 / total, rel=0.1)
     for name in ("integrators.png", "fitting.png"):
         assert (tmp_path / "plots" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 

@@ -25,6 +25,7 @@ here asserts a time. matplotlib is imported only by the plotting functions.
 
 from __future__ import annotations
 
+import contextlib
 import datetime
 import math
 import os
@@ -699,25 +700,58 @@ class Throughput:
     """Batch rate, peak memory and start-up times.
 
     ``rates`` maps a path label to ``(wall seconds, records per second, records fitted)``;
-    ``startup`` a command label to the median wall time (s); memory in MiB.
+    ``stages`` a record length (samples) to the mean CPU seconds per record of its turning
+    points and of its fit; ``startup`` a command label to the median wall time (s); memory
+    in MiB.
     """
 
     records: int
     samples: int
     rates: dict
+    stages: dict
     max_rss_self: float
     max_rss_children: float
     startup: dict
     startup_runs: int
 
 
-def _throughput_record(config: BenchConfig, seed):
-    """A record of the Fig. 20.19 scene with ``config.batch_samples`` samples."""
+def _throughput_record(config: BenchConfig, seed, samples=None):
+    """A record of the Fig. 20.19 scene with ``samples`` (default ``config.batch_samples``)
+    samples."""
     scene = FIG_20_19_SCENE
     rng = np.random.default_rng([config.seed, 99, seed])
-    spc = (config.batch_samples - 1) / scene.cycles
+    spc = ((samples or config.batch_samples) - 1) / scene.cycles
     t, x, _, _ = _fit_record(scene, 1e3, spc, rng)
     return t, x
+
+
+def _stage_seconds(config: BenchConfig, samples):
+    """Mean CPU seconds per record of the turning points and of the fit, in memory.
+
+    CPU time, not wall time, and the best of three passes: on a shared machine the
+    smallest figure is the least disturbed one.
+    """
+    from mcfit.analysis import fit_turning_points
+    from mcfit.errors import McfitError
+    from mcfit.records import Record
+    from mcfit.turning import turning_points_of
+
+    records = [Record(f"record{i}", *_throughput_record(config, i, samples))
+               for i in range(config.batch_records)]
+    best = [math.inf, math.inf]
+    for _ in range(3):
+        turning = []
+        start = time.process_time()
+        for record in records:
+            with contextlib.suppress(McfitError):  # timed all the same
+                turning.append(turning_points_of(record))
+        middle = time.process_time()
+        for points in turning:
+            with contextlib.suppress(McfitError):
+                fit_turning_points(points)
+        end = time.process_time()
+        best = [min(best[0], middle - start), min(best[1], end - middle)]
+    return best[0] / len(records), best[1] / len(records)
 
 
 def _rate_in_memory(config: BenchConfig):
@@ -823,10 +857,15 @@ def run_throughput(config: BenchConfig = QUICK, progress=None) -> Throughput:
                 progress(f"throughput: mcfit on {config.batch_records} CSV files, --jobs {jobs}")
             rates[f"mcfit DIR --format csv --jobs {jobs}"] = _rate_of_command(config, directory,
                                                                               jobs)
+        stages = {}
+        for samples in (config.batch_samples // 10, config.batch_samples):
+            if progress:
+                progress(f"throughput: stages of records of {samples} samples")
+            stages[samples] = _stage_seconds(config, samples)
         if progress:
             progress("throughput: start-up times")
         startup = _startup_times(config, directory)
-    return Throughput(config.batch_records, config.batch_samples, rates,
+    return Throughput(config.batch_records, config.batch_samples, rates, stages,
                       _max_rss_mib(resource.RUSAGE_SELF), _max_rss_mib(resource.RUSAGE_CHILDREN),
                       startup, config.startup_runs)
 
@@ -842,6 +881,13 @@ def format_throughput(result: Throughput) -> str:
         jobs = 2 if label.endswith("--jobs 2") else 1
         lines.append(f"  {label:<40}{seconds:>10.2f}{rate:>11.1f}{rate / jobs:>13.1f}"
                      f"{fitted:>6d}/{result.records}")
+    lines += ["", "  per record in memory, CPU time (best of 3 passes), by record length:",
+              f"  {'samples':>10}{'turning points (ms)':>22}{'fit (ms)':>11}{'total (ms)':>13}"
+              f"{'records/s':>11}"]
+    for samples, (turning, fitting) in result.stages.items():
+        total = turning + fitting
+        lines.append(f"  {samples:>10d}{1e3 * turning:>22.1f}{1e3 * fitting:>11.1f}"
+                     f"{1e3 * total:>13.1f}{1.0 / total:>11.1f}")
     lines += ["", f"  peak resident memory (ru_maxrss): this process {result.max_rss_self:.0f} "
               f"MiB, largest child process {result.max_rss_children:.0f} MiB",
               "", f"  start-up, median wall time of {result.startup_runs} runs as subprocesses:"]
