@@ -254,7 +254,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         # Equilibrium update from the alternation of maxima and minima; flattened crests
         # would bias it.
         fit.valid &= ~_clipped(fit, signs)
-        delta0, delta1 = _equilibrium_correction(centres, fit, t_ref)
+        delta0, delta1 = _equilibrium_correction(centres, fit, half, t_ref)
         e0, e1 = e0 + delta0, e1 + delta1
         settled = refinement > 0 and _shifts_within_noise(fit, half, noise)
         centres = centres + np.where(fit.valid, np.clip(fit.shift, -half / 4, half / 4), 0.0)
@@ -460,12 +460,13 @@ def _equilibrium_line(t, x, period, noise):
     sums = [np.add.reduceat(v, starts) for v in (tau, x, tau * tau, tau * x)]
     for _ in range(3):
         swing = np.maximum.reduceat(np.abs(x - (e0 + e1 * tau)), starts)
-        floor = 1e-6 * float(np.max(swing))
+        largest = float(np.max(swing))
+        floor = 1e-6 * largest
         if np.isfinite(noise):
             floor = max(floor, 3.0 * noise)
         if not floor > 0:
             break
-        weight = 1.0 / np.maximum(swing, floor) ** 2
+        weight = (largest / np.maximum(swing, floor)) ** 2  # relative: no overflow for tiny x
         sw = float(np.dot(weight, counts))
         st, sx, stt, stx = (float(np.dot(weight, s)) for s in sums)
         denominator = sw * stt - st * st
@@ -602,7 +603,11 @@ def _local_decay_rates(centres, y, omega, valid):
     if rate.size >= 7:
         slope = _interpolate_extending_ends(
             centres, middle[1:-1], (rate[2:] - rate[:-2]) / (middle[2:] - middle[:-2]))
-        slope = np.clip(_running_median(slope, 7), -0.1 * omega**2, 0.1 * omega**2)
+        # Under the law |dg/dt| = |c/y**2 - a|*P(y) <= g**2 (|n - 1|*g**2 for dy/dt =
+        # -k*y**n): twice that bounds a slope from noisy or gapped rates, which could
+        # otherwise bend a window's envelope by 10 %.
+        limit = np.minimum(2.0 * gamma**2, 0.1 * omega**2)
+        slope = np.clip(_running_median(slope, 7), -limit, limit)
     return np.vstack([gamma, slope])
 
 
@@ -977,8 +982,9 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
     return out
 
 
-def _equilibrium_correction(centres, fit, t_ref):
-    """(d0, d1): equilibrium error from the alternation of the amplitude sequence."""
+def _equilibrium_correction(centres, fit, half, t_ref):
+    """(d0, d1): equilibrium error from the alternation of the amplitude sequence, in runs
+    of consecutive crests (``half``: local half-periods; a gap breaks a run)."""
     valid = fit.valid
     y = fit.y
     kappa = fit.offset_gain  # y_observed = y_true + kappa*(equilibrium error)
@@ -990,7 +996,12 @@ def _equilibrium_correction(centres, fit, t_ref):
     width = coefficients.size
     if valid.size < width:
         return 0.0, 0.0
-    window_valid = np.all(np.lib.stride_tricks.sliding_window_view(valid, width), axis=1)
+    # Across a gap the decay is not smooth in the crest index: in a window, neighbouring
+    # crests must be about one half-period apart.
+    step_ok = np.diff(centres) < 0.75 * (half[1:] + half[:-1])
+    window_valid = (np.all(np.lib.stride_tricks.sliding_window_view(valid, width), axis=1)
+                    & np.all(np.lib.stride_tricks.sliding_window_view(step_ok, width - 1),
+                             axis=1))
     index = np.flatnonzero(window_valid)  # first point of each full window
     if index.size < 3:
         return 0.0, 0.0
