@@ -234,6 +234,21 @@ def test_a_crest_just_after_a_long_gap_keeps_its_amplitude(seed):
     assert abs(points.y[first_after] - expected) < 3 * points.sigma[first_after]
 
 
+def test_the_sigma_of_a_cut_window_includes_its_phase_error():
+    # The last crest's window ends at the record's end, so a crest-phase error d moves its
+    # projection to first order (by about 0.64*y*d). After a long gap the phase of the few
+    # crests left is known to about 0.01 rad: without that term in sigma the last crest
+    # was 2 to 5 sigma off in a third of the records.
+    z = []
+    for seed in range(12):
+        points = find_turning_points(*_gapped_record(seed, 99.2))
+        last = np.flatnonzero(points.used)[-1]
+        z.append((points.y[last] - amplitude(points.t[last], 1.0, 0.0, 0.02, 0.0))
+                 / points.sigma[last])
+    assert np.sqrt(np.mean(np.square(z))) < 1.5
+    assert np.max(np.abs(z)) < 3.5
+
+
 def test_period_drift_with_amplitude():
     # Period grows with amplitude, as for a pendulum: T = 1 + 0.05*y**2.
     t = np.linspace(0, 60, 12001)

@@ -308,12 +308,15 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     phase_gain = np.exp(0.5 * variance_d)
     y = projected.projection * phase_gain
     sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain) * phase_gain
-    # The phase error also scatters the projection: var(y*cos(d)) = y**2*(1 - e**-v)**2/2,
-    # here with y from the running median of its neighbours: from the crest itself, a
-    # crest raised by noise would get a larger sigma and pull the fit down.
+    # The phase error also scatters the projection, y*(cos(d) + k*sin(d)) with k the
+    # window's phase sensitivity (0 when symmetric, about 0.64 when cut at the crest):
+    # var = y**2*((1 - e**-v)**2 + k**2*(1 - e**-2v))/2, here with y from the running
+    # median of its neighbours: from the crest itself, a crest raised by noise would get a
+    # larger sigma and pull the fit down.
     envelope = np.maximum(_running_median(y, 9), 0.0)
-    sigma_y = np.sqrt(sigma_y**2 + envelope**2 * (1.0 - np.exp(-variance_d)) ** 2
-                      * phase_gain**2 / 2.0)
+    sigma_y = np.sqrt(sigma_y**2 + (envelope * phase_gain) ** 2 / 2.0 * (
+        (1.0 - np.exp(-variance_d)) ** 2
+        + projected.phase_sensitivity**2 * (1.0 - np.exp(-2.0 * variance_d))))
     log_step = crest_gamma[0] * crest_half
     reasons = np.array([""] * crests.size, dtype=object)
     reasons[~projected.complete] = np.where(projected.edge[~projected.complete], "edge", "gap")
@@ -874,6 +877,7 @@ class _WindowFits:
         self.edge = np.zeros(k, dtype=bool)
         self.projection = np.zeros(k)  # amplitude with the crest fixed at the centre
         self.projection_gain = np.full(k, np.inf)  # var(projection) / sigma**2
+        self.phase_sensitivity = np.zeros(k)  # d(projection)/d(crest phase) / projection
         self.peak = np.zeros(k)       # fitted extreme value of x (equilibrium included)
         self.at_max = np.zeros(k, dtype=np.int64)  # samples at the record's max / min level
         self.at_min = np.zeros(k, dtype=np.int64)
@@ -966,6 +970,9 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
         s11_safe = np.where(s11 > 0, s11, 1.0)
         out.projection[sel] = np.where(complete, sg * b1 / s11_safe, 0.0)
         out.projection_gain[sel] = np.where(complete, 1.0 / s11_safe, np.inf)
+        # Moving the crest by a phase d changes the projection by -y*d*s12/s11 to first
+        # order: nothing for a symmetric window, the most for a window cut at its crest.
+        out.phase_sensitivity[sel] = np.where(complete, -s12 / s11_safe, 0.0)
         out.complete[sel] = complete
         out.y[sel] = y_signed * sg  # amplitude along the expected sign (< 0 if wrong)
         out.shift[sel] = shift
