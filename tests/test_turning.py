@@ -211,17 +211,19 @@ def _gapped_record(seed, resume, law=(1.0, 0.0, 0.02, 0.0), noise=1e-3):
     return t[keep], x[keep]
 
 
-@pytest.mark.parametrize("seed", range(4))
-def test_a_long_gap_leaves_the_equilibrium_alone(seed):
+def test_a_long_gap_leaves_the_equilibrium_alone():
     # Sixth differences of amplitudes taken across a 36-cycle gap saw the decay over the
     # gap as alternation: the equilibrium drifted by 5e-3 over the record and the crests
-    # after the gap alternated by about 1.7 sigma about the envelope.
-    points = find_turning_points(*_gapped_record(seed, 96.3))
-    assert abs(points.equilibrium_drift) < 1e-5
-    assert not any("equilibrium drifts" in note for note in points.notes)
-    after = points.used & (points.t > 96.3)
-    z = (points.y - amplitude(points.t, 1.0, 0.0, 0.02, 0.0)) / points.sigma
-    assert abs(np.mean(z[after] * points.sign[after])) < 1.0
+    # after the gap alternated by 1.6 to 2 sigma about the envelope.
+    alternation = []
+    for seed in range(6):
+        points = find_turning_points(*_gapped_record(seed, 96.3))
+        assert abs(points.equilibrium_drift) < 1e-5
+        assert not any("equilibrium drifts" in note for note in points.notes)
+        after = points.used & (points.t > 96.3)
+        z = (points.y - amplitude(points.t, 1.0, 0.0, 0.02, 0.0)) / points.sigma
+        alternation.append(np.mean(z[after] * points.sign[after]))
+    assert abs(np.mean(alternation)) < 0.8
 
 
 @pytest.mark.parametrize("seed", range(6))

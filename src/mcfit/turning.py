@@ -58,6 +58,8 @@ _REFINE_PASSES = 6
 FLOOR_FACTOR = 1.5
 # Larger times or signal values overflow float64 once squared and summed.
 _LARGEST_VALUE = 1e30
+# Sixth-difference windows needed to fit the equilibrium's drift as well as its offset.
+_DRIFT_WINDOWS = 8
 
 
 @dataclass(frozen=True, eq=False)
@@ -1003,12 +1005,15 @@ def _equilibrium_correction(centres, fit, half, t_ref):
     width = coefficients.size
     if valid.size < width:
         return 0.0, 0.0
-    # Across a gap the decay is not smooth in the crest index: in a window, neighbouring
-    # crests must be about one half-period apart.
+    window_valid = np.all(np.lib.stride_tricks.sliding_window_view(valid, width), axis=1)
+    # Across a gap the decay is not smooth in the crest index: windows whose neighbouring
+    # crests are all about one half-period apart are used when there are enough of them
+    # to fit offset and drift; otherwise every window, as a sparse record needs.
     step_ok = np.diff(centres) < 0.75 * (half[1:] + half[:-1])
-    window_valid = (np.all(np.lib.stride_tricks.sliding_window_view(valid, width), axis=1)
-                    & np.all(np.lib.stride_tricks.sliding_window_view(step_ok, width - 1),
-                             axis=1))
+    clean = window_valid & np.all(np.lib.stride_tricks.sliding_window_view(step_ok, width - 1),
+                                  axis=1)
+    if np.count_nonzero(clean) >= _DRIFT_WINDOWS:
+        window_valid = clean
     index = np.flatnonzero(window_valid)  # first point of each full window
     if index.size < 3:
         return 0.0, 0.0
@@ -1019,7 +1024,7 @@ def _equilibrium_correction(centres, fit, half, t_ref):
     rows = y_window @ coefficients
     f0 = k_window @ coefficients
     f1 = (k_window * tau_window) @ coefficients
-    if index.size >= 8:
+    if index.size >= _DRIFT_WINDOWS:
         design = np.stack([f0, f1], axis=1)
     else:
         design = f0[:, None]
