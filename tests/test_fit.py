@@ -10,7 +10,7 @@ import pytest
 
 from mcfit import decay
 from mcfit.errors import FitError
-from mcfit.fit import LRT_ALPHA, MODELS, _boundary_lrt_p_value, fit_decay
+from mcfit.fit import LRT_ALPHA, MODELS, boundary_lrt_p_value, fit_decay
 
 
 @pytest.fixture
@@ -97,8 +97,8 @@ def test_two_terms_that_mimic_a_third_must_pass_a_joint_test():
     chi = {c.model: c.chi_square for c in result.candidates}
     aicc = {c.model: c.aicc for c in result.candidates}
     assert min(aicc, key=aicc.get) == "abc"
-    assert _boundary_lrt_p_value(chi["bc"], chi["abc"], t.size) < LRT_ALPHA
-    assert _boundary_lrt_p_value(chi["ab"], chi["abc"], t.size) < LRT_ALPHA
+    assert boundary_lrt_p_value(chi["bc"], chi["abc"], t.size, 4) < LRT_ALPHA
+    assert boundary_lrt_p_value(chi["ab"], chi["abc"], t.size, 4) < LRT_ALPHA
     assert result.model == "b"
     [dropped] = [w for w in result.warnings if w.startswith("fluid and coulomb terms dropped")]
     assert float(re.search(r"\(p = ([0-9.e+-]+)\)", dropped).group(1)) > LRT_ALPHA
@@ -107,7 +107,8 @@ def test_two_terms_that_mimic_a_third_must_pass_a_joint_test():
 @pytest.mark.parametrize(("terms", "correlation"),
                          [(1, 0.0), (2, 0.0), (2, 0.94), (2, -0.6), (2, 1.0)])
 @pytest.mark.parametrize("statistic", [0.1, 1.0, 5.41, 9.0, 30.0])
-def test_boundary_p_value_is_the_chi_bar_square_mixture(terms, correlation, statistic):
+def test_boundary_p_value_tends_to_the_chi_bar_square_mixture(terms, correlation, statistic):
+    """With many points the finite-sample p-value is the large-sample chi-bar-square one."""
     from scipy import stats
 
     if terms == 1:
@@ -117,11 +118,26 @@ def test_boundary_p_value_is_the_chi_bar_square_mixture(terms, correlation, stat
                                          allow_singular=True).cdf([0, 0])
         weights = (0.5 - both, 0.5, both)
     expected = sum(w * stats.chi2.sf(statistic, df) for df, w in enumerate(weights) if df)
-    n = 100
+    n = 10**7
     chi_square_with = 1.0
     chi_square_without = math.exp(statistic / n)
-    assert _boundary_lrt_p_value(chi_square_without, chi_square_with, n, terms,
-                                 correlation) == pytest.approx(expected, rel=1e-6)
+    assert boundary_lrt_p_value(chi_square_without, chi_square_with, n, 4, terms,
+                                correlation) == pytest.approx(expected, rel=1e-5)
+
+
+@pytest.mark.parametrize("n_points", [8, 16, 40])
+@pytest.mark.parametrize("f_statistic", [0.5, 3.0, 12.0])
+def test_boundary_p_value_of_one_term_is_half_the_f_test(n_points, f_statistic):
+    """On a short record the statistic's null distribution is F(1, n - p), not chi2(1)."""
+    from scipy import stats
+
+    n_params = 3
+    chi_square_with = 1.0
+    chi_square_without = 1.0 + f_statistic / (n_points - n_params)
+    expected = 0.5 * stats.f.sf(f_statistic, 1, n_points - n_params)
+    assert boundary_lrt_p_value(chi_square_without, chi_square_with, n_points,
+                                n_params) == pytest.approx(expected, rel=1e-9)
+
 
 def test_the_same_record_in_other_units_gives_the_same_result(rng):
     t, y = _turning_points(4.0, 0.1, 0.1, 0.01, 0.5, 20.0)
@@ -196,11 +212,11 @@ def test_power_law_recovers_the_exponent(rng):
     t, y = _turning_points(1.0, 0.2, 0.0, 0.0, 0.5, 30.0)
     result = fit_decay(t, y * (1 + rng.normal(0, 1e-4, y.size)), period=0.5, model="power")
     assert result.model == "power"
-    assert result.power_law["n"] == pytest.approx(2.0, abs=0.01)
-    assert result.power_law["k"] == pytest.approx(0.2, rel=0.02)
+    assert result.values["n"] == pytest.approx(2.0, abs=0.01)
+    assert result.values["k"] == pytest.approx(0.2, rel=0.02)
     t, y = _turning_points(1.0, 0.0, 0.05, 0.0, 1.0, 60.0)
     result = fit_decay(t, y * (1 + rng.normal(0, 1e-4, y.size)), period=1.0, model="power")
-    assert result.power_law["n"] == pytest.approx(1.0, abs=0.01)
+    assert result.values["n"] == pytest.approx(1.0, abs=0.01)
 
 
 def test_forced_model_and_bootstrap_interval(rng):
@@ -264,25 +280,28 @@ def test_amplitudes_down_to_and_below_zero_in_the_noise(y0, a, b, c, period, dur
 
 @pytest.mark.parametrize("failing", ["every", "every other"])
 def test_bootstrap_refits_that_fail_are_counted_and_said(rng, monkeypatch, failing):
-    from mcfit import fit
+    import dataclasses
 
-    real = fit._fit_subset
+    from mcfit.fit import decay_fit
+
+    real = decay_fit.fit_candidates
     calls = []
 
     def sometimes_failing(*args):
         calls.append(None)
-        result = real(*args)
+        fitted = real(*args)
         refit = len(calls) - 1  # the first call is the fit itself
         if refit and (failing == "every" or refit % 2 == 0):
-            return result[:4] + (False,) + result[5:]
-        return result
+            return {m: dataclasses.replace(c, success=False) for m, c in fitted.items()}
+        return fitted
 
-    monkeypatch.setattr(fit, "_fit_subset", sometimes_failing)
+    monkeypatch.setattr(decay_fit, "fit_candidates", sometimes_failing)
     t, y = _noisy_tail(rng, 1.0, 0.0, 0.05, 0.0, 1.0, 60.0, 3e-3)
     result = fit_decay(t, y, period=1.0, model="b", bootstrap=6, rng=rng)
     assert result.status == "ok"
     if failing == "every":
-        assert result.bootstrap == {"n": 0, "failed": 6, "interval_95": None}
+        assert result.bootstrap == {"n": 0, "failed": 6, "models": {}, "interval_95": None,
+                                    "selection": "fixed"}
         assert "no bootstrap refit of 6 converged: no intervals" in result.warnings
     else:
         assert result.bootstrap["n"] == 3 and result.bootstrap["failed"] == 3
@@ -307,7 +326,7 @@ def test_non_positive_tail_with_forced_models_and_bootstrap(rng):
     assert high - low == pytest.approx(2 * 1.96 * boot.stderr["b"], rel=0.5)
     power = fit_decay(t, y, period=1.0, model="power")
     assert power.status == "ok"
-    assert power.power_law["n"] == pytest.approx(1.0, abs=0.1)
+    assert power.values["n"] == pytest.approx(1.0, abs=0.1)
     # A first amplitude <= 0 as well: the largest one still sets the scale.
     y[0] = -1e-3
     assert fit_decay(t, y, period=1.0).status == "ok"

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcfit.errors import McfitError
-from mcfit.fit import DecayFit, fit_decay
+from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["Analysis", "analyse_record", "failed_analysis", "fit_turning_points"]
@@ -23,7 +23,7 @@ class Analysis:
     error: str | None
     record: object | None = None  # mcfit.records.Record
     turning: TurningPoints | None = None
-    fit: DecayFit | None = None
+    fit: DecayFit | PowerLawFit | None = None
 
     @property
     def warnings(self) -> tuple[str, ...]:
@@ -38,7 +38,7 @@ def failed_analysis(source: str, message: str, record=None, turning=None) -> Ana
     return Analysis(source=source, status="error", error=message, record=record, turning=turning)
 
 
-def fit_turning_points(turning: TurningPoints, **options) -> DecayFit:
+def fit_turning_points(turning: TurningPoints, **options) -> DecayFit | PowerLawFit:
     """:func:`mcfit.fit.fit_decay` on the used turning points, with their uncertainties
     (only when every one is finite and > 0) and period (when known); ``options`` go to
     ``fit_decay``. Raises :class:`mcfit.errors.FitError` for unusable turning points."""
@@ -47,8 +47,9 @@ def fit_turning_points(turning: TurningPoints, **options) -> DecayFit:
     if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
         sigma = None
     period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
+    period_sigma = turning.period_sigma if math.isfinite(turning.period_sigma) else None
     return fit_decay(turning.t[used], turning.y[used], sigma, period=period,
-                     domain=turning.domain, **options)
+                     period_sigma=period_sigma, domain=turning.domain, **options)
 
 
 def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=None) -> Analysis:

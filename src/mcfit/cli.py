@@ -246,10 +246,12 @@ def _column(value):
               help="Whether the first column is time or cycle number n [default: detected].")
 @click.option("--criterion", type=click.Choice(["aicc", "bic"]), default="aicc",
               show_default=True, help="Information criterion that chooses the regimes.")
-@click.option("--model", metavar="LETTERS|power",
-              help="Force the regimes, e.g. ab, or power for dy/dt = -k*y^n.")
+@click.option("--model", metavar="LETTERS|none|power",
+              help="Force the regimes, e.g. ab; none for constant amplitude; power for "
+                   "dy/dt = -k*y^n.")
 @click.option("--bootstrap", type=click.IntRange(min=0), default=0, metavar="N",
-              help="Residual-bootstrap refits for 95 % intervals.")
+              help="Residual-bootstrap refits for 95 % intervals; unless --model is given, "
+                   "each chooses the model anew.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the bootstrap resampling.")
 @click.option("--format", "output_format", type=click.Choice(["text", "json", "csv"]),
@@ -272,10 +274,8 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     from mcfit import batch
 
     sources = batch.expand_inputs(files)
-    if model is not None and model != "power" and (
-            not model or set(model.lower()) - set("abc")):
-        raise UsageError(f"--model {model!r} is not a set of regimes; use letters from abc "
-                         "(e.g. ab) or power.")
+    if model is not None:
+        model = _parsed_model(model)
     if plot_file is not None and plot_dir is not None:
         raise UsageError("give --plot FILE or --plot-dir DIR, not both.")
     if rate is not None and time_col is not None:
@@ -306,11 +306,23 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     options = batch.FitOptions(
         time_col=_column(time_col), signal_col=_column(signal_col), sheet=_column(sheet),
         rate=rate, input=input_kind, domain=domain, criterion=criterion,
-        model=model.lower() if model else None, bootstrap=bootstrap, seed=seed,
+        model=model, bootstrap=bootstrap, seed=seed,
         output_format=output_format)
     results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
     failures = _write_results(results, sources, output_format, output)
     sys.exit(1 if failures else 0)
+
+
+def _parsed_model(text):
+    """The model named by --model, or a usage error in the option's own words."""
+    from mcfit.errors import FitError
+    from mcfit.fit.models import parse_model
+
+    try:
+        return parse_model(text)
+    except FitError:
+        raise UsageError(f"--model {text!r} is not a set of regimes; use letters from abc "
+                         "(e.g. ab), none or power.") from None
 
 
 def _refuse_to_overwrite_an_input(output, sources):

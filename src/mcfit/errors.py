@@ -10,9 +10,17 @@ __all__ = ["McfitError", "InputError", "RecordError", "FitError", "UsageError"]
 
 
 class McfitError(Exception):
-    """Base of every expected failure: the message says what, where and how to fix."""
+    """Base of every expected failure: the message says what, where and how to fix.
+
+    ``option`` names the parameter at fault (``"model"``, ``"signal_col"``), so that an
+    interface can point at its own spelling of it.
+    """
 
     exit_code = 1
+
+    def __init__(self, message: str = "", *, option: str | None = None):
+        super().__init__(message)
+        self.option = option
 
 
 class InputError(McfitError):

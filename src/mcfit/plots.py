@@ -15,7 +15,7 @@ from matplotlib.figure import Figure
 
 from mcfit import decay
 from mcfit.files import replace_atomically, temporary_beside
-from mcfit.fit import REGIME_NAMES, DecayFit
+from mcfit.fit import NONE, POWER, REGIME_NAMES, DecayFit, PowerLawFit
 
 __all__ = ["RecordView", "report_figure", "save_figure"]
 
@@ -59,9 +59,7 @@ def report_figure(view: RecordView, fit: DecayFit) -> Figure:
     _draw_amplitudes(axes_amplitude, axes_residual, view, fit)
     _draw_q(axes_q, view, fit)
     _draw_rate(axes_rate, view, fit)
-    kept = (", ".join(REGIME_NAMES[k] for k in fit.model).replace("coulomb", "Coulomb")
-            if fit.model != "power" else "power law")
-    figure.suptitle(f"{view.title}: {kept} damping", fontsize=13)
+    figure.suptitle(f"{view.title}: {_verdict(fit)}", fontsize=13)
     # Free the blank cell under the record panel for a parameter summary.
     summary = figure.add_subplot(grid[1, 0])
     summary.axis("off")
@@ -71,23 +69,38 @@ def report_figure(view: RecordView, fit: DecayFit) -> Figure:
     return figure
 
 
-def _summary_text(fit: DecayFit, signal_unit: str) -> str:
+def _verdict(fit) -> str:
+    if fit.model == POWER:
+        return "power-law damping"
+    if fit.model == NONE:
+        return "no damping detected"
+    kept = ", ".join(REGIME_NAMES[k] for k in fit.model).replace("coulomb", "Coulomb")
+    return f"{kept} damping" if fit.resolved else "damping (regime not resolved: constant Q)"
+
+
+def _summary_text(fit: DecayFit | PowerLawFit, signal_unit: str) -> str:
     unit = "s" if fit.domain == "time" else "cycle"
     u = signal_unit
     lines = []
-    for key, label in (("a", f"a (1/({u}*{unit}))"), ("b", f"b (1/{unit})"),
-                       ("c", f"c ({u}/{unit})")):
-        value, error = fit.values[key], fit.stderr[key]
-        if fit.model != "power" and key in fit.model:
-            lines.append(f"{label:16s} {value:.4g} +- {error:.2g}" if error else
-                         f"{label:16s} {value:.4g}")
-    if fit.power_law is not None:
-        p = fit.power_law
-        lines.append(f"dy/d{unit} = -k*y^n: n = {p['n']:.3f} +- {p['n_stderr']:.2g}, k = {p['k']:.4g}")
-    if fit.q_summary:
-        q = fit.q_summary
+    if fit.model == POWER:
+        v, e = fit.values, fit.stderr
+        lines.append(f"dy/d{unit} = -k*y^n: n = {v['n']:.3f} +- {e['n']:.2g}, k = {v['k']:.4g}")
+    else:
+        for key, label in (("a", f"a (1/({u}*{unit}))"), ("b", f"b (1/{unit})"),
+                           ("c", f"c ({u}/{unit})")):
+            value, error = fit.values[key], fit.stderr[key]
+            if key in fit.selection.terms:
+                lines.append(f"{label:16s} {value:.4g} +- {error:.2g}" if error else
+                             f"{label:16s} {value:.4g}")
+    q = fit.q_summary
+    if q and q.get("initial_stderr") is not None:
+        lines.append(f"Q initial {q['initial']:.4g} +- {q['initial_stderr']:.2g}, "
+                     f"final {q['final']:.4g} +- {q['final_stderr']:.2g}")
+    elif q:
         lines.append(f"Q initial {q['initial']:.4g}, final {q['final']:.4g}, "
                      f"min {q['min']:.4g}, max {q['max']:.4g}")
+    elif getattr(fit, "q_lower_bound", None) is not None:
+        lines.append(f"Q > {fit.q_lower_bound:.2g} (95 %)")
     lines.append(f"{fit.n_points} turning points, reduced chi-square {fit.reduced_chi_square:.3g}")
     return "\n".join(lines)
 
@@ -155,14 +168,16 @@ def _draw_q(axes, view, fit):
     axes.set_xlabel(view.time_label)
     axes.set_ylabel("Q")
     if fit.q is None:
-        axes.text(0.5, 0.5, "Q needs the period: not known for this record", ha="center",
-                  transform=axes.transAxes)
+        bound = getattr(fit, "q_lower_bound", None)
+        text = (f"no damping detected:\nQ > {bound:.2g} (95 %)" if bound is not None else
+                "Q needs the period: not known for this record")
+        axes.text(0.5, 0.5, text, ha="center", transform=axes.transAxes)
         return
     axes.plot(fit.t, fit.q, color="k", lw=1.6, label="Q total")
-    if fit.q_stderr is not None:
+    if getattr(fit, "q_stderr", None) is not None:
         axes.fill_between(fit.t, fit.q - 1.96 * fit.q_stderr, fit.q + 1.96 * fit.q_stderr,
                           color="0.6", alpha=0.4, label="95 % band")
-    if fit.q_parts is not None:
+    if getattr(fit, "q_parts", None) is not None:
         for key, color in (("fluid", "tab:orange"), ("hysteretic", "tab:green"),
                            ("coulomb", "tab:purple")):
             part = fit.q_parts[key]
@@ -194,11 +209,13 @@ def _draw_rate(axes, view, fit):
     shown = y_mid if y_mid.size else y[y > 0]
     y_fine = np.linspace(max(shown.min(initial=y.max()), 1e-12 * y.max()), y.max(), 300)
     v = fit.values
-    if fit.power_law is None:
-        model_rate = decay.decay_rate(y_fine, v["a"], v["b"], v["c"]) / y_fine
+    if fit.model == POWER:
+        model_rate = v["k"] * y_fine ** (v["n"] - 1)
+        label = "model k*y^(n-1)"
     else:
-        model_rate = fit.power_law["k"] * y_fine ** (fit.power_law["n"] - 1)
-    axes.plot(y_fine, model_rate, color="tab:red", lw=1.6, label="model c/y + b + a*y")
+        model_rate = decay.decay_rate(y_fine, v["a"], v["b"], v["c"]) / y_fine
+        label = "model c/y + b + a*y"
+    axes.plot(y_fine, model_rate, color="tab:red", lw=1.6, label=label)
     axes.set_xlabel(f"amplitude y ({view.signal_label})")
     axes.set_ylabel(f"-(dy/dt)/y (1/{unit})")
     axes.set_title("damping rate against amplitude")

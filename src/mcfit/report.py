@@ -9,12 +9,14 @@ import math
 
 from mcfit import decay
 from mcfit.analysis import Analysis
-from mcfit.fit import REGIME_NAMES, TERMS
+from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS
 
 __all__ = ["CSV_COLUMNS", "to_json_dict", "to_json", "csv_header", "to_csv_row", "to_text"]
 
 CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", "b", "b_stderr",
-               "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error")
+               "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error",
+               "q_initial_stderr", "q_final_stderr")
+_Q_KEYS = ("initial", "final", "min", "max")
 
 
 def _number(value):
@@ -34,20 +36,30 @@ def _params_in_time_units(analysis: Analysis):
     else:
         time_unit = getattr(record, "time_unit", None) or "s"
         unit = "per second" if time_unit == "s" else f"per {time_unit}"  # an unknown unit
-    return dict(fit.values), dict(fit.stderr), unit
+    values, stderr = _law_values(fit)
+    return values, stderr, unit
+
+
+def _law_values(fit):
+    """y0, a, b, c and their stderrs; a power-law fit has y0 only (a, b, c 0, no stderr)."""
+    if fit.model != POWER:
+        return dict(fit.values), dict(fit.stderr)
+    values = {"y0": fit.values["y0"], "a": 0.0, "b": 0.0, "c": 0.0}
+    return values, {"y0": fit.stderr["y0"], "a": None, "b": None, "c": None}
 
 
 def _params_per_cycle(analysis: Analysis):
     """Coefficients per cycle (a*T, b*T, c*T, as in Fig. 20.20), or None without a period."""
     fit, turning = analysis.fit, analysis.turning
+    law, law_errors = _law_values(fit)
     if fit.domain == "cycle":
-        return {k: {"value": _number(fit.values[k]), "stderr": _number(fit.stderr[k])}
+        return {k: {"value": _number(law[k]), "stderr": _number(law_errors[k])}
                 for k in TERMS}
     period = _number(turning.period) if turning is not None else None
     if period is None:
         return None
-    values = decay.to_cycle_units(*(fit.values[k] for k in TERMS), period)
-    errors = [None if fit.stderr[k] is None else fit.stderr[k] * period for k in TERMS]
+    values = decay.to_cycle_units(*(law[k] for k in TERMS), period)
+    errors = [None if law_errors[k] is None else law_errors[k] * period for k in TERMS]
     return {k: {"value": _number(v), "stderr": _number(e)}
             for k, v, e in zip(TERMS, values, errors)}
 
@@ -65,27 +77,39 @@ def to_json_dict(analysis: Analysis) -> dict:
     else:
         values, stderr, units = _params_in_time_units(analysis)
         out["model"] = fit.model
-        out["regimes"] = dict(fit.regimes)
+        power = fit.model == POWER
+        out["resolved"] = True if power else fit.resolved
+        out["regimes"] = dict.fromkeys(REGIME_NAMES.values(), False) if power else dict(fit.regimes)
         out["params"] = {k: {"value": _number(values[k]), "stderr": _number(stderr[k])}
                          for k in ("y0", "a", "b", "c")}
         out["params_units"] = units
         out["params_per_cycle"] = _params_per_cycle(analysis)
         out["t0"] = _number(fit.t0)  # time (or cycle) of the first turning point used, where y = y0
         q = fit.q_summary or {}
-        out["q"] = {k: _number(q.get(k)) for k in ("initial", "final", "min", "max")}
+        out["q"] = {k: _number(q.get(k)) for k in _Q_KEYS}
+        out["q"].update({f"{k}_stderr": _number(q.get(f"{k}_stderr")) for k in _Q_KEYS})
+        out["q"]["lower_bound"] = _number(getattr(fit, "q_lower_bound", None))
         out["fit"] = {"criterion": fit.criterion, "forced": fit.forced, "rms": _number(fit.rms),
                       "reduced_chi_square": _number(fit.reduced_chi_square),
-                      "lrt_p_values": {REGIME_NAMES.get(k, k): _number(p)
-                                       for k, p in fit.lrt_p_values.items()},
                       "noise_from_residuals": fit.noise_from_residuals}
+        if not power:
+            selection = fit.selection
+            out["fit"].update({
+                "lrt_p_values": {REGIME_NAMES[k]: _number(p)
+                                 for k, p in fit.lrt_p_values.items()},
+                "alpha": selection.alpha, "preferred": selection.preferred,
+                "ties": list(selection.ties),
+                "near_threshold": {REGIME_NAMES[k]: _number(p)
+                                   for k, p in selection.near_threshold.items()}})
         out["candidates"] = [{"model": c.model, "n_params": c.n_params,
                               "chi_square": _number(c.chi_square), "aicc": _number(c.aicc),
                               "bic": _number(c.bic), "converged": c.success}
                              for c in fit.candidates]
-        if fit.power_law is not None:
-            out["power_law"] = {k: _number(v) for k, v in fit.power_law.items()}
-        if fit.bootstrap is not None:
-            out["bootstrap"] = fit.bootstrap
+        if power:
+            out["power_law"] = {**{k: _number(v) for k, v in fit.values.items()},
+                                **{f"{k}_stderr": _number(e) for k, e in fit.stderr.items()}}
+        if getattr(fit, "bootstrap", None) is not None:
+            out["bootstrap"] = _bootstrap_json(fit.bootstrap)
         out["warnings"] = list(analysis.warnings)
     if record is not None:
         out["columns"] = {"time": record.time_column, "signal": record.signal_column}
@@ -97,6 +121,12 @@ def to_json_dict(analysis: Analysis) -> dict:
     elif record is not None:
         out["notes"] = list(record.notes)
     return out
+
+
+def _bootstrap_json(boot):
+    intervals = boot["interval_95"]
+    return {**boot, "interval_95": None if intervals is None else
+            {k: [_number(low), _number(high)] for k, (low, high) in intervals.items()}}
 
 
 def to_json(analysis: Analysis) -> str:
@@ -123,6 +153,7 @@ def to_csv_row(analysis: Analysis) -> str:
     q = data.get("q") or {}
     row = {"source": data["source"], "status": data["status"], "model": data.get("model"),
            "period": data.get("period"), "q_initial": q.get("initial"), "q_final": q.get("final"),
+           "q_initial_stderr": q.get("initial_stderr"), "q_final_stderr": q.get("final_stderr"),
            "turning_points": data.get("turning_points"), "error": data.get("error")}
     for k in ("y0", "a", "b", "c"):
         row[k] = (params.get(k) or {}).get("value")
@@ -140,6 +171,66 @@ def _format(value, error=None):
     if error is None:
         return f"{value:.6g}"
     return f"{value:.6g} +- {error:.2g}"
+
+
+def _with_error(value, error):
+    """``value +- error``, the value rounded to the error's second significant digit."""
+    if error is None or not math.isfinite(error) or error <= 0:
+        return f"{value:.5g}"
+    decimals = max(0, 1 - math.floor(math.log10(error)))
+    return f"{value:.{decimals}f} +- {error:.2g}"
+
+
+def _short(value):
+    """3.1e5 rather than 3.1e+05: a bound read at a glance."""
+    mantissa, _, exponent = f"{value:.2g}".partition("e")
+    return f"{mantissa}e{int(exponent)}" if exponent else mantissa
+
+
+def _regimes_lines(fit) -> list[str]:
+    """The verdict and the evidence for each kept term."""
+    if fit.model == POWER:
+        v, e = fit.values, fit.stderr
+        return [f"  model:           power law dy/dt = -k*y^n, n = {_format(v['n'], e['n'])}, "
+                f"k = {_format(v['k'], e['k'])}"]
+    how = ("forced with --model" if fit.forced else
+           f"by {fit.criterion.upper()} and likelihood-ratio test")
+    if fit.model == NONE:
+        lines = [f"  regimes present: none: no damping detected ({how})"]
+    elif not fit.resolved and len(fit.model) == 1:
+        lines = [f"  regimes present: not resolved: reported as constant Q (model b, {how})"]
+    else:
+        present = ", ".join(REGIME_NAMES[k] for k in fit.model)
+        resolved = "" if fit.resolved else "; not resolved"
+        lines = [f"  regimes present: {present} (model {fit.model}, {how}{resolved})"]
+    for k, p in fit.lrt_p_values.items():
+        lines.append(f"    {REGIME_NAMES[k]:11s} term: p = {p:.2g} (the chance that noise alone "
+                     "gives so large a gain in fit)")
+    return lines
+
+
+def _q_line(fit) -> str | None:
+    q = fit.q_summary
+    if q and q.get("initial_stderr") is not None:
+        parts = [f"{k} {_with_error(q[k], q[f'{k}_stderr'])}" for k in _Q_KEYS]
+        return "  Q:               " + ", ".join(parts)
+    if q:
+        return "  Q:               " + ", ".join(f"{k} {q[k]:.5g}" for k in _Q_KEYS)
+    bound = getattr(fit, "q_lower_bound", None)
+    return f"  Q:               Q > {_short(bound)} (95 %)" if bound is not None else None
+
+
+def _bootstrap_lines(fit) -> list[str]:
+    boot = getattr(fit, "bootstrap", None)
+    if not boot or not boot["n"]:
+        return []
+    how = ("model fixed" if boot["selection"] == "fixed" else
+           "model chosen anew in each: " + ", ".join(
+               f"{m} {100 * share:.0f} %" for m, share in boot["models"].items()))
+    lines = [f"  bootstrap:       {boot['n']} resamples ({how}); 95 % intervals:"]
+    for name, (low, high) in boot["interval_95"].items():
+        lines.append(f"    {name:28s} [{low:.5g}, {high:.5g}]")
+    return lines
 
 
 def to_text(analysis: Analysis) -> str:
@@ -163,35 +254,22 @@ def to_text(analysis: Analysis) -> str:
                       if drift is not None else "")
         lines.append(f"  period:          {data['period']:.6g} {'s' if fit.domain == 'time' else 'cycle'}"
                      f"{drift_text}")
-    if fit.model == "power":
-        p = fit.power_law
-        lines.append(f"  model:           power law dy/dt = -k*y^n, n = {_format(p['n'], p['n_stderr'])}, "
-                     f"k = {_format(p['k'], p.get('k_stderr'))}")
-    else:
-        present = [REGIME_NAMES[k] for k in fit.model]
-        how = ("forced with --model" if fit.forced else
-               f"by {fit.criterion.upper()} and likelihood-ratio test")
-        lines.append(f"  regimes present: {', '.join(present)} (model {fit.model}, {how})")
-        for k, p in fit.lrt_p_values.items():
-            if len(fit.model) > 1:
-                lines.append(f"    {REGIME_NAMES[k]:11s} term: p = {p:.2g} that the record "
-                             "does without it")
+    lines += _regimes_lines(fit)
     params = data["params"]
     unit = data.get("params_units", "per second")
     lines.append(f"  parameters ({unit}):")
     at = f"{fit.t0:.4g} s" if fit.domain == "time" else f"n = {fit.t0:.4g}"
     labels = {"y0": f"y0 (amplitude at {at})",
               "a": "a (fluid)", "b": "b (hysteretic)", "c": "c (Coulomb)"}
-    for k in ("y0",) if fit.model == "power" else ("y0", "a", "b", "c"):
+    for k in ("y0",) if fit.model == POWER else ("y0", "a", "b", "c"):
         lines.append(f"    {labels[k]:28s} {_format(params[k]['value'], params[k]['stderr'])}")
     per_cycle = data.get("params_per_cycle")
-    if per_cycle is not None and unit == "per second" and fit.model != "power":
+    if per_cycle is not None and unit == "per second" and fit.model not in (POWER, NONE):
         lines.append("  per cycle:       " + ", ".join(
             f"{k}*T = {per_cycle[k]['value']:.4g}" for k in TERMS if per_cycle[k]["value"]))
-    q = data["q"]
-    if q and q["initial"] is not None:
-        lines.append(f"  Q:               initial {q['initial']:.5g}, final {q['final']:.5g}, "
-                     f"min {q['min']:.5g}, max {q['max']:.5g}")
+    q_line = _q_line(fit)
+    if q_line:
+        lines.append(q_line)
     lines.append(f"  fit:             rms {fit.rms:.3g}, reduced chi-square "
                  f"{fit.reduced_chi_square:.3g}")
     ranked = sorted(fit.candidates, key=lambda c: getattr(c, fit.criterion))
@@ -199,6 +277,7 @@ def to_text(analysis: Analysis) -> str:
         best = getattr(ranked[0], fit.criterion)
         scores = ", ".join(f"{c.model} {getattr(c, fit.criterion) - best:+.1f}" for c in ranked)
         lines.append(f"  candidates:      delta {fit.criterion.upper()}: {scores}")
+    lines += _bootstrap_lines(fit)
     for note in data.get("notes", []):
         lines.append(f"  note: {note}")
     for warning in analysis.warnings:

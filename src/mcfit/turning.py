@@ -279,8 +279,10 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     measured = fit.valid & ~_clipped(fit, signs)
     floor_level, floor_start = _vibration_floor(centres, magnitude, noise_sigma, fit, measured)
     before_floor = np.arange(centres.size) < (centres.size if floor_start is None else floor_start)
+    crest_times = centres + np.where(fit.valid, fit.shift, 0.0)
     period, period_sigma, drift, drift_sigma = _period_and_drift(
-        centres, signs, magnitude, measured & before_floor, period)
+        crest_times, signs, magnitude, measured & before_floor, period,
+        _phase_weights(magnitude, magnitude_sigma))
 
     # Crest times from the phase of all crests, continued to the end of the decay, and
     # amplitudes as projections onto that phase (THEORY.md section 7: near the noise a
@@ -1208,8 +1210,8 @@ def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
             "only, or cut the record before the rise.")
 
 
-def _period_and_drift(centres, signs, y, used, period):
-    """Period from crest spacing and its relative change with amplitude."""
+def _period_and_drift(centres, signs, y, used, period, weights=None):
+    """Period from the crest times and its relative change with amplitude."""
     pairs = used[:-1] & used[1:] & (signs[:-1] != signs[1:])
     spacing = np.diff(centres)
     ok = pairs & (spacing > 0.3 * period) & (spacing < 0.7 * period)
@@ -1218,6 +1220,9 @@ def _period_and_drift(centres, signs, y, used, period):
         return period, float("nan"), float("nan"), float("nan")
     result = 2 * float(np.mean(halves))
     result_sigma = 2 * float(np.std(halves, ddof=1) / np.sqrt(halves.size))
+    if weights is not None:
+        result, result_sigma = _period_by_crest_times(centres, signs, used, result, weights,
+                                                      result_sigma)
     # Full periods from same-sign neighbours cancel the max/min crest-time asymmetry.
     triple = used[:-2] & used[1:-1] & used[2:] & ok[:-1] & ok[1:]
     if np.count_nonzero(triple) < 4:
@@ -1240,6 +1245,32 @@ def _period_and_drift(centres, signs, y, used, period):
     drift = float(fit[0] * spread / result)
     drift_sigma = float(slope_sigma * spread / result)
     return result, result_sigma, drift, drift_sigma
+
+
+def _period_by_crest_times(times, signs, used, period, weights, fallback_sigma):
+    """Period and its standard error from a weighted straight line through the crest times
+    against half-cycle number, with an offset between maxima and minima.
+
+    The mean of the half-cycle spacings depends on the first and last crest alone, which
+    are often the faintest; the line weighs every crest by the inverse variance of its
+    phase. The noise scale is estimated from the residuals, so a period that drifts with
+    amplitude widens the error rather than hiding in it.
+    """
+    keep = used & (weights > 0) & np.isfinite(times)
+    if np.count_nonzero(keep) < 5:
+        return period, fallback_sigma
+    t = times[keep]
+    number = np.round((t - t[0]) / (0.5 * period))
+    design = np.column_stack([np.ones_like(t), 0.5 * number, 0.5 * signs[keep]])
+    root = np.sqrt(weights[keep] / np.max(weights[keep]))
+    solution, _, rank, _ = np.linalg.lstsq(design * root[:, None], t * root, rcond=None)
+    dof = t.size - 3
+    if rank < 3 or dof <= 0 or np.unique(number).size != number.size:
+        return period, fallback_sigma
+    residual = (t - design @ solution) * root
+    covariance = np.linalg.pinv((design * root[:, None]).T @ (design * root[:, None]))
+    variance = covariance[1, 1] * float(residual @ residual) / dof
+    return float(solution[1]), float(np.sqrt(max(variance, 0.0)))
 
 
 # --------------------------------------------------------------------------- tables

@@ -1,0 +1,308 @@
+"""Fit every candidate model to a record's turning points, and the reported one with lmfit.
+
+One solver path. Each candidate is ranked with MINPACK's Levenberg-Marquardt while its
+parameters stay > 0 (it costs almost nothing per iteration); where the optimum lies on a
+bound, scipy's bounded trust-region-reflective solver takes over (:func:`_rank`). The model
+reported is refitted with lmfit, which drives the same trust-region-reflective solver on the
+same residuals and Jacobian (:func:`fit_reported`). The empty model, constant amplitude, is
+a weighted mean.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import warnings
+from dataclasses import asdict, dataclass, field
+
+import lmfit
+import numpy as np
+from scipy import optimize
+
+from mcfit.fit.models import NONE, terms_of
+from mcfit.fit.problem import Problem, ScaledRecord
+
+__all__ = ["Candidate", "ReportedFit", "fit_candidates", "fit_reported", "make_candidate",
+           "information_criteria", "lmfit_least_squares"]
+
+# Stop when chi-square changes by < 1e-10 relative: 1e-5 of a standard error in the
+# parameters, and far enough above chi-square's rounding floor (~1e-15) that the same
+# record in other units stops after the same iterations.
+_TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
+# Ranking needs chi-square to far below 1 (AICc differences, likelihood ratios): 1e-8 of it
+# is ample, and saves MINPACK one or two iterations per candidate.
+_RANKING_TOLERANCES = {"ftol": 1e-8, "xtol": 1e-8, "gtol": 1e-8}
+# Levenberg-Marquardt evaluations allowed for ranking a candidate before the bounded solver
+# takes over: candidates whose optimum is inside the bounds need 4 to 13.
+_RANKING_EVALUATIONS = 25
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One model fitted to the record: its fit quality, criteria and parameters.
+
+    ``values`` are physical (y0, a, b, c; absent terms 0); ``correlation`` holds the
+    correlations of the estimates of its terms, ``{"a,b": rho}``, used by the joint
+    likelihood-ratio tests.
+    """
+
+    model: str
+    n_params: int
+    chi_square: float
+    aicc: float
+    bic: float
+    success: bool
+    values: dict
+    evaluations: int
+    correlation: dict = field(default_factory=dict)
+    internal: np.ndarray = field(default=None, repr=False, compare=False)
+    gradient: np.ndarray = field(default=None, repr=False, compare=False)
+
+    @property
+    def terms(self) -> str:
+        return terms_of(self.model)
+
+    def score(self, criterion: str) -> float:
+        return getattr(self, criterion)
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        del out["internal"], out["gradient"]
+        return out
+
+
+@dataclass(frozen=True)
+class ReportedFit:
+    """lmfit's fit of the reported model, in internal units: the values of y0, a, b, c,
+    the free parameters' covariance (None if unknown), chi-square with the record's
+    weights."""
+
+    values: np.ndarray
+    free: tuple
+    covariance: np.ndarray | None
+    chi_square: float
+    success: bool
+    evaluations: int
+
+
+def information_criteria(chi_square, n_points, n_params):
+    """AICc and BIC of a Gaussian likelihood whose overall noise scale is estimated."""
+    log_likelihood_term = n_points * math.log(max(chi_square, 1e-300) / n_points)
+    aic = log_likelihood_term + 2 * n_params
+    denominator = n_points - n_params - 1
+    aicc = aic + (2 * n_params * (n_params + 1) / denominator if denominator > 0 else math.inf)
+    bic = log_likelihood_term + n_params * math.log(n_points)
+    return aicc, bic
+
+
+def fit_candidates(scaled: ScaledRecord, models) -> dict:
+    """Fit ``models`` (names from :data:`mcfit.fit.models.MODELS`, smaller ones first:
+    each is started from those one term smaller) and return ``{model: Candidate}``."""
+    fitted = {}
+    for model in models:
+        if model == NONE:
+            fitted[model] = _constant_amplitude(scaled)
+            continue
+        smaller = [fitted[m] for m in fitted if len(fitted[m].terms) == len(model) - 1
+                   and set(fitted[m].terms) <= set(model)]
+        fitted[model] = _rank(scaled, model, smaller)
+    return fitted
+
+
+def make_candidate(scaled, model, values, chi_square, success, evaluations, gradient=None):
+    """A :class:`Candidate` from its internal values (y0, a, b, c) and chi-square."""
+    n_params = len(terms_of(model)) + 1
+    aicc, bic = information_criteria(chi_square, scaled.t.size, n_params)
+    return Candidate(model, n_params, chi_square, aicc, bic, success,
+                     scaled.to_physical(values), evaluations,
+                     _correlations(scaled, terms_of(model), values), values, gradient)
+
+
+def _constant_amplitude(scaled):
+    """The empty model: the weighted mean amplitude (>= 0, as the law's)."""
+    w2 = scaled.weights**2
+    y0 = max(float(np.sum(w2 * scaled.y) / np.sum(w2)), 0.0)
+    chi_square = float(np.sum(w2 * (scaled.y - y0) ** 2))
+    gradient = Problem(scaled, "").gradient([y0])
+    return make_candidate(scaled, NONE, np.array([y0, 0.0, 0.0, 0.0]), chi_square, True, 1,
+                          gradient)
+
+
+def _correlations(scaled, terms, values):
+    """Correlations of the estimates of two or more terms at ``values`` (internal units),
+    from the pseudo-inverse of J'J; 0 where a variance is 0."""
+    if len(terms) < 2:
+        return {}
+    problem = Problem(scaled, terms)
+    covariance = problem.covariance(values[problem.columns])
+    pairs = {}
+    for first, second in itertools.combinations(terms, 2):
+        i, j = problem.free.index(first), problem.free.index(second)
+        product = (covariance[i, i] * covariance[j, j]) if covariance is not None else 0.0
+        pairs[f"{first},{second}"] = (float(covariance[i, j] / math.sqrt(product))
+                                      if product > 0 else 0.0)
+    return pairs
+
+
+def _rank(scaled, terms, smaller):
+    """Fit one model well enough to rank it.
+
+    Started where the bounded solver starts and in the same coordinates, MINPACK's
+    Levenberg-Marquardt heads for the same optimum while the parameters stay > 0, and most
+    candidates converge so. A candidate whose optimum lies on the bound 0 (a term the
+    record does not want) makes it step below 0; that optimum is then a smaller model's,
+    when every term at 0 there has a chi-square gradient pointing outward (the Kuhn-Tucker
+    conditions) and nothing lower was met on the way. Otherwise the bounded solver runs
+    from the linear estimate, and from the best smaller model if that was lower.
+    """
+    best_smaller = min(smaller, key=lambda c: c.chi_square, default=None)
+    problem = Problem(scaled, terms)
+    start = scaled.starting_values(terms)
+    solution, lowest, evaluations, left = _levenberg_marquardt(problem, start)
+    if solution is not None:
+        chi_square = problem.chi_square(solution)
+        if best_smaller is None or chi_square <= best_smaller.chi_square:
+            return make_candidate(scaled, terms, problem.values(solution), chi_square, True,
+                                  evaluations, problem.gradient(solution))
+    elif left and best_smaller is not None and lowest >= best_smaller.chi_square:
+        at_bound = [column for column in problem.columns[1:]
+                    if best_smaller.internal[column] == 0]
+        if all(best_smaller.gradient[column] >= 0 for column in at_bound):
+            return make_candidate(scaled, terms, best_smaller.internal.copy(),
+                                  best_smaller.chi_square, best_smaller.success, evaluations,
+                                  best_smaller.gradient)
+    values, chi_square, success, more = _bounded(problem, start)
+    evaluations += more
+    if best_smaller is not None and best_smaller.chi_square < chi_square:
+        values, chi_square, success, more = _bounded(problem, best_smaller.internal)
+        evaluations += more
+    return make_candidate(scaled, terms, values, chi_square, success, evaluations,
+                      problem.gradient(values[problem.columns]))
+
+
+def _bounded(problem, start):
+    """scipy's trust-region-reflective fit with the bounds [0, inf), analytic Jacobian,
+    x_scale="jac": the solver and settings lmfit uses for the reported fit.
+    Returns (values, chi_square, success, evaluations)."""
+    result = optimize.least_squares(problem.residual, np.maximum(start[problem.columns], 0.0),
+                                    jac=problem.jacobian, bounds=(0.0, np.inf), method="trf",
+                                    x_scale="jac", max_nfev=4000 * (len(problem.free) + 1),
+                                    **_TOLERANCES)
+    return (problem.values(result.x), problem.chi_square(result.x), bool(result.success),
+            int(result.nfev))
+
+
+class _LeftTheBounds(Exception):
+    """Levenberg-Marquardt tried a parameter < 0, where the law is not defined."""
+
+
+def _levenberg_marquardt(problem, start):
+    """MINPACK's Levenberg-Marquardt on ``problem`` from ``start`` (y0, a, b, c), abandoned
+    if it tries a parameter < 0.
+
+    Returns (free values or None, lowest chi-square seen (record weights), evaluations,
+    left the bounds). The free values are given only if a MINPACK convergence test passed
+    inside the bounds.
+    """
+    seen = {"evaluations": 0, "lowest": math.inf}
+
+    def residual(x):
+        seen["evaluations"] += 1
+        if min(x) < 0:
+            raise _LeftTheBounds
+        r = problem.residual(x)
+        seen["lowest"] = min(seen["lowest"], float(r @ r) * problem.chi_square_scale)
+        return r
+
+    def jacobian(x):
+        if min(x) < 0:
+            raise _LeftTheBounds
+        return problem.jacobian(x)
+
+    try:
+        with warnings.catch_warnings():
+            # leastsq's own covariance (unused here) may overflow far from a sensible optimum.
+            warnings.filterwarnings("ignore", category=RuntimeWarning,
+                                    module=r"scipy\.optimize\._minpack_py")
+            x, _, _, _, status = optimize.leastsq(
+                residual, start[problem.columns], Dfun=jacobian, full_output=True,
+                maxfev=_RANKING_EVALUATIONS, **_RANKING_TOLERANCES)
+    except _LeftTheBounds:
+        return None, seen["lowest"], seen["evaluations"], True
+    converged = status in (1, 2, 3, 4) and min(x) > 0
+    return (x if converged else None), seen["lowest"], seen["evaluations"], False
+
+
+def fit_reported(scaled: ScaledRecord, candidate: Candidate) -> ReportedFit:
+    """The reported model fitted with lmfit, started at its ranking solution refined by
+    Gauss-Newton (so lmfit converges at once)."""
+    problem = Problem(scaled, candidate.terms)
+    start, refining = _gauss_newton_refined(problem, candidate.internal)
+    params = lmfit.Parameters()
+    for name, value in zip(problem.free, start[problem.columns]):
+        params.add(name, value=value, min=0.0)
+
+    def residual(p):
+        return problem.residual([p[k].value for k in problem.free])
+
+    def jacobian(p):
+        return problem.jacobian([p[k].value for k in problem.free])
+
+    result = lmfit_least_squares(residual, jacobian, params)
+    free_values = [result.params[k].value for k in problem.free]
+    chi_square = float(result.chisqr) * problem.chi_square_scale
+    return ReportedFit(problem.values(free_values), problem.free,
+                       _covariance(problem, free_values, result, chi_square), chi_square,
+                       bool(result.success), candidate.evaluations + refining + int(result.nfev))
+
+
+def lmfit_least_squares(residual, jacobian, params):
+    """lmfit's bounded least squares (scipy's trust-region-reflective solver) with the
+    analytic Jacobian and mcfit's tolerances: the solver of every reported fit."""
+    with warnings.catch_warnings():
+        # lmfit takes the square root of its covariance's diagonal, which rounding makes
+        # slightly negative where a parameter is nearly unconstrained (Q of 1e6, or a
+        # constant record): numpy's warning there is lmfit's, and the caller checks covar.
+        warnings.filterwarnings("ignore", category=RuntimeWarning, module=r"lmfit\.")
+        return lmfit.Minimizer(residual, params).minimize(
+            method="least_squares", jac=jacobian, x_scale="jac", **_TOLERANCES)
+
+
+def _covariance(problem, free_values, result, chi_square):
+    """The parameters' covariance in internal units: lmfit's (J^T J)^-1 times the reduced
+    chi-square where it is sound, else the same from a pseudo-inverse (which stays finite
+    when J^T J is singular to rounding)."""
+    dof = problem.t.size - len(problem.free)
+    if dof <= 0:
+        return None
+    covar = getattr(result, "covar", None)
+    if covar is not None and np.all(np.isfinite(covar)) and np.all(np.diag(covar) >= 0):
+        return covar
+    unscaled = problem.covariance(free_values)
+    return None if unscaled is None else unscaled * chi_square / dof
+
+
+def _gauss_newton_refined(problem, values):
+    """``values`` (a ranking solution) after up to two Gauss-Newton steps, and the number of
+    evaluations of the law they took.
+
+    Along a direction the record hardly determines (correlated parameters), chi-square
+    changes by less than its rounding error over a range of about 1e-9 of the values: a
+    solver that compares chi-square values stops anywhere in it, where its path (the
+    record's units, say) leads. A Gauss-Newton step solves for the optimum instead. A step
+    is kept only inside the bounds and if chi-square does not rise beyond rounding.
+    """
+    x = values[problem.columns]
+    chi_square = problem.chi_square(x)
+    evaluations = 0
+    for _ in range(2):
+        step = np.linalg.lstsq(problem.jacobian(x), -problem.residual(x), rcond=None)[0]
+        trial = x + step
+        if not np.all(trial > 0):
+            break
+        trial_chi_square = problem.chi_square(trial)
+        evaluations += 1
+        if not trial_chi_square <= chi_square * (1.0 + 1e-12):
+            break
+        x, chi_square = trial, trial_chi_square
+    return problem.values(x), evaluations

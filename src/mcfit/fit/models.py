@@ -1,0 +1,46 @@
+"""The candidate models and their names: plain constants, no numerical imports.
+
+A model is the set of damping terms it keeps, written as letters in the order a, b, c
+("ab", "c"); the empty set, constant amplitude, is written ``"none"``. The command line
+takes its choices from here without importing the numerical stack.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+from mcfit.errors import FitError
+
+__all__ = ["TERMS", "NONE", "POWER", "MODELS", "REGIME_NAMES", "CRITERIA", "terms_of",
+           "parse_model"]
+
+TERMS = ("a", "b", "c")
+NONE = "none"  # constant amplitude: no damping
+POWER = "power"  # dy/dt = -k*y**n, fitted only when asked for
+# The eight subsets of {a, b, c}, smallest first: "none", then as letters in the order a, b, c.
+MODELS = (NONE,) + tuple("".join(s) for n in (1, 2, 3)
+                         for s in itertools.combinations(TERMS, n))
+REGIME_NAMES = {"a": "fluid", "b": "hysteretic", "c": "coulomb"}
+CRITERIA = ("aicc", "bic")
+
+
+def terms_of(model: str) -> str:
+    """The letters of the terms a model keeps ("" for ``"none"``)."""
+    return "" if model == NONE else model
+
+
+def parse_model(text: str) -> str:
+    """A model name from what a person wrote: letters from "abc" in any order and case
+    ("BA" -> "ab"), ``"none"`` or ``"power"``.
+
+    Raises :class:`mcfit.errors.FitError` (with ``option="model"``) for anything else,
+    e.g. ``"bacon"`` or a repeated letter.
+    """
+    word = str(text).strip().lower()
+    if word in (NONE, POWER):
+        return word
+    if word and set(word) <= set(TERMS) and len(set(word)) == len(word):
+        return "".join(k for k in TERMS if k in word)
+    raise FitError(f"model {text!r} is not a set of damping terms: use letters from 'abc' "
+                   "(a fluid, b hysteretic, c Coulomb; e.g. 'ab'), 'none' or 'power'",
+                   option="model")
