@@ -81,6 +81,49 @@ def _lines_in_temporary(folder, name):
 # --------------------------------------------------------------------------- workers, signals
 
 
+def _children(pid):
+    try:
+        return [int(p) for task in Path(f"/proc/{pid}/task").iterdir()
+                for p in (task / "children").read_text().split()]
+    except OSError:
+        return []
+
+
+@pytest.mark.slow
+def test_a_killed_worker_costs_only_its_record(tmp_path):
+    """SIGKILL (as the out-of-memory killer sends it) to a real worker of a --jobs 2 batch."""
+    if not Path(f"/proc/{os.getpid()}/task/{os.getpid()}/children").exists():
+        pytest.skip("needs /proc/PID/task/TID/children to find the worker processes")
+    # The bootstrap makes each record take seconds, so a worker is caught mid-record.
+    files = _records(tmp_path / "runs", 5, duration=60.0)
+    before = _digests(files)
+    out = tmp_path / "out.csv"
+    process = subprocess.Popen(_mcfit(*files, "--jobs", "2", "--bootstrap", "400",
+                                      "--seed", "1", "--format", "csv", "-o", out),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(lambda: len(_children(process.pid)) == 2, process, "two workers")
+        time.sleep(0.5)  # both are fitting their first record by now
+        victim = _children(process.pid)[0]
+        os.kill(victim, signal.SIGKILL)
+        stdout, stderr = process.communicate(timeout=TIMEOUT)
+    finally:
+        process.kill()
+    assert process.returncode == 1, stderr
+    assert "Traceback" not in stderr
+    rows = out.read_text().splitlines()[1:]
+    assert [row.split(",")[0] for row in rows] == [str(f) for f in files]  # every record
+    lost = [row for row in rows if row.split(",")[1] == "error"]
+    assert len(lost) == 1
+    assert sum(row.split(",")[1] == "ok" for row in rows) == 4
+    assert ("was killed by signal 9 (SIGKILL), likely by the out-of-memory killer; fit it "
+            "again alone") in lost[0]
+    assert stderr.count("\n") == 1 and stderr.startswith("Error: the worker process fitting ")
+    assert not _children(process.pid)
+    assert _digests(files) == before
+    assert not _temporary_files(tmp_path, tmp_path / "runs")
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("stop", [signal.SIGTERM, signal.SIGHUP], ids=["SIGTERM", "SIGHUP"])
 def test_a_stop_signal_keeps_the_finished_records(tmp_path, stop):
@@ -106,6 +149,29 @@ def test_a_stop_signal_keeps_the_finished_records(tmp_path, stop):
                       f"kept in {out}.\n")
     assert _digests(files) == before
     assert not _temporary_files(tmp_path, tmp_path / "runs")
+
+
+@pytest.mark.slow
+def test_a_stop_signal_to_a_batch_with_workers_ends_them(tmp_path):
+    files = _records(tmp_path / "runs", 4, duration=60.0)
+    out = tmp_path / "out.csv"
+    process = subprocess.Popen(_mcfit(*files, "--jobs", "2", "--bootstrap", "400", "--format",
+                                      "csv", "-o", out),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        _wait_for(lambda: len(_children(process.pid)) == 2, process, "two workers")
+        workers = _children(process.pid)
+        process.send_signal(signal.SIGTERM)
+        stdout, stderr = process.communicate(timeout=TIMEOUT)
+    finally:
+        process.kill()
+    assert process.returncode == 143, stderr
+    assert "Traceback" not in stderr and "Stopped by SIGTERM" in stderr
+    assert out.read_text().startswith("source,status,")
+    for worker in workers:  # ended with mcfit, not left fitting
+        assert not Path(f"/proc/{worker}").exists() or \
+            "Z" in Path(f"/proc/{worker}/stat").read_text().split()[2]
+    assert not _temporary_files(tmp_path)
 
 
 # --------------------------------------------------------------------------- write errors
