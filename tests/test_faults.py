@@ -408,3 +408,22 @@ def test_numpy_warnings_never_reach_stderr(tmp_path):
     assert "Warning" not in result.stderr
     assert all(line.startswith("Error: ") for line in result.stderr.splitlines())
     assert result.returncode in (0, 1)
+
+
+def test_a_stop_signal_while_simulate_writes_leaves_no_temporary_file(runner, tmp_path,
+                                                                        monkeypatch):
+    out = tmp_path / "record.csv"
+    out.write_text("earlier record\n")
+
+    def stopped_midway(*arguments, **options):
+        os.kill(os.getpid(), signal.SIGTERM)  # handled by mcfit: raises in this thread
+
+    monkeypatch.setattr(np, "savetxt", stopped_midway)  # simulate writes with np.savetxt
+    handler = signal.getsignal(signal.SIGTERM)
+    result = runner.invoke(cli, ["simulate", "--duration", "1", "-o", str(out)])
+    assert result.exit_code == 143
+    assert result.stderr == f"\nInterrupted: the record was not written whole; {out} was " \
+                            "left as it was.\n"
+    assert out.read_text() == "earlier record\n"
+    assert not _temporary_files(tmp_path)
+    assert signal.getsignal(signal.SIGTERM) == handler  # restored after the run

@@ -234,7 +234,13 @@ def simulate(a, b, c, y0, period, duration, rate, noise, offset, drift, seed, me
         stream.write("t,x\n")
         np.savetxt(stream, np.column_stack([t, x]), fmt="%.15g", delimiter=",")
 
-    _write_whole(output, write)
+    with _stop_signals_interrupt():
+        try:
+            _write_whole(output, write)
+        except (KeyboardInterrupt, _Stopped) as interruption:
+            kept = "" if output == "-" else f"; {output} was left as it was"
+            click.echo(f"\nInterrupted: the record was not written whole{kept}.", err=True)
+            sys.exit(_exit_code_of(interruption))
 
 
 _FIT_HELP = """Fit the damping law to each record FILE and report a, b, c and Q(t).
