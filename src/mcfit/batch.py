@@ -11,8 +11,10 @@ import dataclasses
 import importlib
 import multiprocessing
 import os
-from concurrent.futures import ProcessPoolExecutor
+import signal
+from collections import deque
 from dataclasses import dataclass
+from multiprocessing.connection import wait
 from pathlib import Path
 
 from mcfit.errors import InputError, McfitError, UsageError
@@ -20,6 +22,10 @@ from mcfit.errors import InputError, McfitError, UsageError
 __all__ = ["FitOptions", "JobResult", "expand_inputs", "run_jobs", "plot_path_for"]
 
 RECORD_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat", ".xlsx", ".xlsm")
+
+# Signals that stop a whole run. Workers ignore them: the parent keeps the finished records
+# and then ends the workers itself (a terminal's Ctrl-C reaches every process of the group).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 
 
 @dataclass(frozen=True)
@@ -189,7 +195,13 @@ def _plot(analysis, path):
 
 
 def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
-    """Yield a :class:`JobResult` per source, in input order, each as soon as it is ready."""
+    """Yield a :class:`JobResult` per source, in input order, each as soon as it is ready.
+
+    With ``jobs`` > 1 the records are fitted by worker processes. A worker that dies (the
+    out-of-memory killer, a crash in a library) costs only its record, reported as an error
+    that names the cause; a new worker takes its place. Closing the generator ends the
+    workers at once.
+    """
     arguments = [(source, options, plot) for source, plot in zip(sources, plot_paths)]
     if jobs <= 1 or len(arguments) <= 1:
         for argument in arguments:
@@ -200,6 +212,140 @@ def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
         # once (about 1.4 s of CPU) instead of once in every worker.
         for module in ("mcfit.analysis", "mcfit.records", "mcfit.report"):
             importlib.import_module(module)
-    with ProcessPoolExecutor(max_workers=jobs) as executor:
-        # map keeps input order and hands results over lazily, one by one.
-        yield from executor.map(_job, arguments, chunksize=1)
+    yield from _run_in_workers(arguments, min(jobs, len(arguments)))
+
+
+class _Worker:
+    """One worker process and the pipe that carries its jobs and results."""
+
+    def __init__(self):
+        self.connection, child = multiprocessing.Pipe()
+        self.process = multiprocessing.Process(target=_work, args=(child,), daemon=True)
+        self.task = None  # (index, argument) of the record being fitted
+        # Blocked while the process starts, so that a stop signal cannot reach the new
+        # process before it ignores it (it would print a KeyboardInterrupt traceback).
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            self.process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        child.close()
+
+    def give(self, task):
+        """Send a record; a worker that died meanwhile is found by its sentinel."""
+        self.task = task
+        try:
+            self.connection.send(task)
+        except OSError:
+            pass
+
+    def stop(self):
+        """End the process: at once if it is fitting a record that is not wanted any more.
+
+        An idle worker is told to stop; closing the pipe would not do, as forked siblings
+        hold copies of its end.
+        """
+        if self.task is None:
+            try:
+                self.connection.send(None)
+            except OSError:
+                pass  # already gone
+        else:
+            self.process.kill()
+            self.task = None
+        self.connection.close()
+        self.process.join(timeout=5)
+        if self.process.exitcode is None:
+            self.process.kill()
+            self.process.join()
+
+
+def _work(connection):
+    """Worker process: fit the records sent through ``connection`` until it is closed."""
+    for stop in STOP_SIGNALS:
+        signal.signal(stop, signal.SIG_IGN)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
+    parent = os.getppid()
+    while True:
+        # A parent killed outright cannot say stop: a new parent process id tells instead.
+        while not connection.poll(1.0):
+            if os.getppid() != parent:
+                return
+        try:
+            task = connection.recv()
+        except EOFError:
+            return
+        if task is None:
+            return
+        index, argument = task
+        connection.send((index, _job(argument)))
+
+
+def _run_in_workers(arguments, jobs):
+    waiting = deque(enumerate(arguments))
+    finished = {}
+    workers = []
+    next_index = 0
+    try:
+        while next_index < len(arguments):
+            for worker in [w for w in workers if w.task is None and not w.process.is_alive()]:
+                workers.remove(worker)  # died between two records: nothing lost
+                worker.stop()
+            while waiting and len(workers) < jobs:
+                workers.append(_Worker())
+            for worker in workers:
+                if worker.task is None and waiting:
+                    worker.give(waiting.popleft())
+            busy = [worker for worker in workers if worker.task is not None]
+            ready = wait([w.connection for w in busy] + [w.process.sentinel for w in busy])
+            for worker in busy:
+                if worker.connection in ready or worker.process.sentinel in ready:
+                    index, result = _collect(worker)
+                    if result is None:
+                        result = _lost(worker)
+                        workers.remove(worker)
+                        worker.stop()
+                    finished[index] = result
+            while next_index in finished:
+                yield finished.pop(next_index)
+                next_index += 1
+    finally:
+        for worker in workers:
+            worker.stop()
+
+
+def _collect(worker):
+    """The index and result of the worker's record; result None when the worker died."""
+    index = worker.task[0]
+    try:
+        if worker.connection.poll():
+            received_index, result = worker.connection.recv()
+            worker.task = None
+            return received_index, result
+    except (EOFError, OSError):
+        pass
+    worker.process.join()
+    return index, None
+
+
+def _lost(worker):
+    """The error result of a record whose worker died while fitting it."""
+    (_, (source, options, _)) = worker.task
+    code = worker.process.exitcode
+    if code is not None and code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = "an unknown signal"
+        cause = f"was killed by signal {-code} ({name})"
+        if -code == signal.SIGKILL:
+            cause += ", likely by the out-of-memory killer"
+    else:
+        cause = f"ended with exit code {code}"
+    message = (f"the worker process fitting {_display_name(source)} {cause}; fit it again "
+               "alone, with --jobs 1, or free some memory.")
+    from mcfit.analysis import failed_analysis
+
+    analysis = failed_analysis(_display_name(source), message)
+    return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
+                     output=_format(analysis, options.output_format))

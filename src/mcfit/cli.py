@@ -8,16 +8,19 @@ stderr and exit with the error's code; anything else is a bug and keeps its trac
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import signal
 import sys
+import warnings
 from pathlib import Path
 
 import click
 
 from mcfit import __version__
-from mcfit.errors import McfitError, UsageError
-from mcfit.files import replace_atomically, temporary_beside
+from mcfit.errors import ClosedOutputError, McfitError, UsageError, escape_controls, printable
+from mcfit.files import Output, is_regular_or_new
 
 __all__ = ["cli", "main", "McfitGroup"]
 
@@ -29,8 +32,45 @@ class _ReportedError(click.ClickException):
     """A McfitError shown as click shows its own errors: ``Error: message`` on stderr."""
 
     def __init__(self, error: McfitError):
-        super().__init__(" ".join(str(error).split()))  # one line
+        super().__init__(printable(error))  # one line, no control characters
         self.exit_code = error.exit_code
+
+
+class _Stopped(BaseException):
+    """A stop signal (SIGTERM, SIGHUP) received: ends the run as Ctrl-C does."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _stop_signals_interrupt():
+    """While the block runs, SIGTERM and SIGHUP raise :class:`_Stopped` in it.
+
+    Their default action kills the process at once, leaving temporary files and losing
+    the records already finished; raised as an exception they unwind like Ctrl-C does.
+    """
+    def stop(signum, frame):
+        raise _Stopped(signum)
+
+    previous = {}
+    try:
+        for signum in (signal.SIGTERM, signal.SIGHUP):
+            previous[signum] = signal.signal(signum, stop)
+    except ValueError:  # not the main thread: signals cannot be handled here
+        pass
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _exit_code_of(interruption) -> int:
+    """128 + the signal's number, as a shell reports a process ended by that signal."""
+    signum = getattr(interruption, "signum", signal.SIGINT)
+    return 128 + signum
 
 
 class McfitGroup(click.Group):
@@ -61,8 +101,14 @@ class McfitGroup(click.Group):
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
+        except ClosedOutputError:
+            sys.exit(1)  # the reader has gone (| head): quiet, as Unix filters are
         except McfitError as error:
             raise _ReportedError(error) from error
+        except click.ClickException as error:
+            # click quotes names as given (a file name may hold escape sequences).
+            error.message = printable(error.message)
+            raise
 
 
 class _Number(click.ParamType):
@@ -188,10 +234,13 @@ def simulate(a, b, c, y0, period, duration, rate, noise, offset, drift, seed, me
         stream.write("t,x\n")
         np.savetxt(stream, np.column_stack([t, x]), fmt="%.15g", delimiter=",")
 
-    if output == "-":
-        write(sys.stdout)
-    else:
-        _write_atomically(output, write)
+    with _stop_signals_interrupt():
+        try:
+            _write_whole(output, write)
+        except (KeyboardInterrupt, _Stopped) as interruption:
+            kept = "" if output == "-" else f"; {output} was left as it was"
+            click.echo(f"\nInterrupted: the record was not written whole{kept}.", err=True)
+            sys.exit(_exit_code_of(interruption))
 
 
 _FIT_HELP = """Fit the damping law to each record FILE and report a, b, c and Q(t).
@@ -271,9 +320,6 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
         # Set before numpy is first imported (here and in the workers); user settings win.
         for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(variable, "1")
-    from mcfit import batch
-
-    sources = batch.expand_inputs(files)
     if model is not None:
         model = _parsed_model(model)
     if plot_file is not None and plot_dir is not None:
@@ -281,36 +327,58 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     if rate is not None and time_col is not None:
         raise UsageError("give either --time-col or --rate (time from the sample index), "
                          "not both.")
-    if plot_file is not None and len(sources) != 1:
-        raise UsageError("--plot takes one record; for several use --plot-dir DIR.")
     if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf",
                                                                                 ".svg"):
         raise UsageError(f"--plot {plot_file}: the name must end in .png, .pdf or .svg.")
-    if output != "-":
-        if os.path.isdir(output):  # checked here, not by click, to say it in one line
-            example = os.path.join(output, "results." + output_format.replace("text", "txt"))
-            raise UsageError(f"-o {output} is a directory; give a file name, e.g. {example}.")
-        _refuse_to_overwrite_an_input(output, sources)
+    options = dict(time_col=_column(time_col), signal_col=_column(signal_col),
+                   sheet=_column(sheet), rate=rate, input=input_kind, domain=domain,
+                   criterion=criterion, model=model,
+                   bootstrap=bootstrap, seed=seed)
+    with _stop_signals_interrupt():
+        try:
+            failures = _fit_files(files, output, output_format, plot_file, plot_dir, jobs,
+                                  options)
+        except (KeyboardInterrupt, _Stopped) as interruption:
+            # Stopped before the first record was written: nothing to keep.
+            click.echo("\nInterrupted before any record was finished.", err=True)
+            sys.exit(_exit_code_of(interruption))
+    sys.exit(1 if failures else 0)
+
+
+def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options):
+    """Check the outputs against each other and the inputs, then fit and write; return the
+    number of failed records."""
+    from mcfit import batch
+
+    sources = batch.expand_inputs(files)
+    if plot_file is not None and len(sources) != 1:
+        raise UsageError("--plot takes one record; for several use --plot-dir DIR.")
+    if output != "-" and os.path.isdir(output):  # checked here, not by click: one line
+        example = os.path.join(output, "results." + output_format.replace("text", "txt"))
+        raise UsageError(f"-o {output} is a directory; give a file name, e.g. {example}.")
     if "-" in sources:
         jobs = 1  # stdin can be read by one process only
+    if plot_dir is not None:
+        taken = set()
+        plot_paths = [batch.plot_path_for(s, plot_dir, taken) for s in sources]
+        plots = [("--plot-dir", path) for path in plot_paths]
+    else:
+        plot_paths = [plot_file] * len(sources)
+        plots = [("--plot", plot_file)] if plot_file is not None else []
+    outputs = ([("-o", output)] if output != "-" else []) + plots
+    _refuse_outputs_that_clash(outputs, files, sources)
     if plot_dir is not None:
         try:
             os.makedirs(plot_dir, exist_ok=True)
         except OSError as error:
             raise McfitError(f"cannot create plot directory {plot_dir}: "
                              f"{error.strerror or error}") from error
-        taken = set()
-        plot_paths = [batch.plot_path_for(s, plot_dir, taken) for s in sources]
-    else:
-        plot_paths = [plot_file] * len(sources)
-    options = batch.FitOptions(
-        time_col=_column(time_col), signal_col=_column(signal_col), sheet=_column(sheet),
-        rate=rate, input=input_kind, domain=domain, criterion=criterion,
-        model=model, bootstrap=bootstrap, seed=seed,
-        output_format=output_format)
+    options = batch.FitOptions(output_format=output_format, **options)
     results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
-    failures = _write_results(results, sources, output_format, output)
-    sys.exit(1 if failures else 0)
+    try:
+        return _write_results(results, sources, output_format, output)
+    finally:
+        results.close()  # ends the worker processes at once after an error
 
 
 def _parsed_model(text):
@@ -325,12 +393,32 @@ def _parsed_model(text):
                          "(e.g. ab), none or power.") from None
 
 
-def _refuse_to_overwrite_an_input(output, sources):
-    for source in sources:
-        if source != "-" and os.path.exists(output) and os.path.exists(source) \
-                and os.path.samefile(output, source):
-            raise UsageError(f"-o {output} is one of the input records; choose another "
-                             "output file, inputs are never overwritten.")
+def _refuse_outputs_that_clash(outputs, arguments, sources):
+    """Usage errors, before any work, for outputs that would destroy each other or an input.
+
+    ``outputs`` holds (option, path) pairs. A device or a FIFO is written in place and
+    destroys nothing, so only regular files (or new names) are checked.
+    """
+    outputs = [(option, path) for option, path in outputs if is_regular_or_new(path)]
+    seen = {}
+    for option, path in outputs:
+        key = os.path.realpath(path)
+        if key in seen:
+            raise UsageError(f"{seen[key]} and {option} both name {path}; one would overwrite "
+                             "the other. Give them different names.")
+        seen[key] = f"{option} {path}"
+        for source in sources:
+            if source != "-" and os.path.exists(path) and os.path.exists(source) \
+                    and os.path.samefile(path, source):
+                raise UsageError(f"{option} {path} is one of the input records; choose "
+                                 "another output file, inputs are never overwritten.")
+        folder = os.path.realpath(os.path.dirname(os.path.abspath(path)))
+        for argument in arguments:
+            if argument != "-" and os.path.isdir(argument) \
+                    and os.path.realpath(argument) == folder:
+                raise UsageError(f"{option} {path} is inside {argument}, a directory being "
+                                 "read: a later run would read it as a record. Write it "
+                                 "to another directory.")
 
 
 def _write_results(results, sources, output_format, output):
@@ -340,10 +428,7 @@ def _write_results(results, sources, output_format, output):
     interruption, so the file always holds whole records only.
     """
     total = len(sources)
-    if output == "-":
-        stream, temporary = sys.stdout, None
-    else:
-        stream, temporary = _open_output(output)
+    target = Output(output)
     failures = done = written = 0
     show_progress = total > 1 and sys.stderr.isatty()
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
@@ -352,61 +437,53 @@ def _write_results(results, sources, output_format, output):
         if output_format == "csv":
             from mcfit.report import csv_header
 
-            stream.write(csv_header())
+            target.write(csv_header())
         for result in results:
             done += 1
             if result.status != "ok":
                 failures += 1
-                click.echo(f"Error: {result.error}", err=True)
+                click.echo(f"Error: {printable(result.error)}", err=True)
             if result.plot_error:
                 failures += 1
-                click.echo(f"Error: {result.plot_error}", err=True)
+                click.echo(f"Error: {printable(result.plot_error)}", err=True)
             if output_format == "json":
-                stream.write(result.output + "\n" if total > 1 else _pretty_json(result.output))
+                target.write(result.output + "\n" if total > 1 else _pretty_json(result.output))
             elif output_format == "csv":
-                stream.write(result.output)
-            elif result.status == "ok" or temporary is not None:
+                target.write(result.output)
+            elif result.status == "ok" or target.temporary is not None:
                 # On stdout the Error line above (stderr) says all a failed record's report
                 # would; a report file (-o) keeps it, so that the file accounts for every
                 # record.
-                stream.write(("\n" if written else "") + result.output)
+                target.write(("\n" if written else "") + _printable_lines(result.output))
                 written += 1
-            stream.flush()
             if progress is not None:
                 progress.update(1)
-    except KeyboardInterrupt:
-        click.echo(f"\nInterrupted: {done} of {total} records finished"
-                   + (f" and kept in {output}." if temporary else "."), err=True)
-        _finish_output(stream, temporary, output)
-        sys.exit(130)
+    except (KeyboardInterrupt, _Stopped) as interruption:
+        name = ("Interrupted" if isinstance(interruption, KeyboardInterrupt)
+                else f"Stopped by {signal.Signals(interruption.signum).name}")
+        kept = f" and kept in {output}." if target.temporary is not None else "."
+        click.echo(f"\n{name}: {done} of {total} records finished{kept}", err=True)
+        target.commit()
+        sys.exit(_exit_code_of(interruption))
     except BaseException:
-        if temporary is not None:
-            stream.close()
-            os.unlink(temporary)
+        target.discard()
         raise
     finally:
         if progress is not None:
             progress.render_finish()
-    _finish_output(stream, temporary, output)
+    target.commit()
     return failures
+
+
+def _printable_lines(text):
+    """A text report with every line made safe for a terminal (notes quote file contents)."""
+    return "\n".join(escape_controls(line) for line in text.split("\n"))
 
 
 def _pretty_json(line):
     import json
 
     return json.dumps(json.loads(line), indent=2) + "\n"
-
-
-def _finish_output(stream, temporary, output):
-    """Flush stdout, or make the temporary file whole on disk and move it onto ``output``."""
-    if temporary is None:
-        stream.flush()
-        return
-    if not stream.closed:
-        stream.flush()
-        os.fsync(stream.fileno())
-        stream.close()
-    replace_atomically(temporary, output)
 
 
 _BENCH_HELP = """Measure speed against error and print the tables (BENCHMARKS.md).
@@ -462,30 +539,27 @@ def bench_command(full, sections, repeats, seed, output_dir):
                          f"{error.strerror or error}") from error
 
 
-def _open_output(path):
-    """A text stream to a temporary file beside ``path``, and that file's name."""
+def _write_whole(path, write):
+    """Write text with ``write(stream)`` to stdout (``-``), a device, or a file whole."""
+    output = Output(path)
     try:
-        temporary = temporary_beside(os.path.abspath(path))
-    except OSError as error:
-        raise McfitError(f"cannot write {path}: {error.strerror or error}; check that the "
-                         "directory exists and is writable.") from error
-    return open(temporary, "w", newline=""), temporary
-
-
-def _write_atomically(path, write):
-    """Write a text file through a temporary file in the same directory and os.replace."""
-    stream, temporary = _open_output(path)
-    try:
-        write(stream)
-        _finish_output(stream, temporary, path)
-    except BaseException as error:
-        stream.close()
-        Path(temporary).unlink(missing_ok=True)
-        if isinstance(error, OSError):
-            raise McfitError(f"cannot write {path}: {error.strerror or error}") from error
+        output.write_with(write)
+        output.commit()
+    except BaseException:
+        output.discard()
         raise
 
 
 def main(argv=None):
-    """Console entry point (``mcfit``) and ``python -m mcfit``."""
+    """Console entry point (``mcfit``) and ``python -m mcfit``.
+
+    Warnings are for the developers of mcfit, who see them in the tests (and with
+    ``python -W default -m mcfit``); a person running mcfit gets the Error line or the
+    result, not a numpy RuntimeWarning before it. A write past the file-size limit raises
+    EFBIG, cleaned up like any write error, instead of killing the process (SIGXFSZ).
+    """
+    if not sys.warnoptions:
+        warnings.simplefilter("ignore")
+        os.environ["PYTHONWARNINGS"] = "ignore"  # worker processes that start afresh
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     cli.main(args=argv, prog_name="mcfit")

@@ -1,17 +1,43 @@
-"""Writing output files whole or not at all (shared by the command line and the plots)."""
+"""Writing output files whole or not at all (shared by the command line and the plots).
+
+A regular file (or a new name) is written through a temporary file beside it that replaces
+it at the end, so a reader never sees half a file and a failed run keeps the old one.
+Anything else, a device (``/dev/null``, a terminal) or a FIFO, is written in place: renaming
+a file over it would replace the device node or the pipe the reader waits on.
+"""
 
 from __future__ import annotations
 
+import errno
 import os
+import stat
+import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["temporary_beside", "replace_atomically"]
+from mcfit.errors import ClosedOutputError, OutputError
+
+__all__ = ["temporary_beside", "replace_atomically", "is_regular_or_new", "Output"]
+
+
+def is_regular_or_new(path) -> bool:
+    """Whether ``path`` (after symbolic links) is a regular file or does not exist yet.
+
+    A path that cannot be looked at (below a file, in a closed folder) counts as new: the
+    write that follows then fails with the reason.
+    """
+    try:
+        return stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return True
 
 
 def temporary_beside(path) -> str:
-    """An empty temporary file in the directory of ``path`` (same file system)."""
-    path = Path(path)
+    """An empty temporary file in the directory of ``path`` (same file system).
+
+    A symbolic link is followed, so that the link is kept and its target replaced.
+    """
+    path = Path(os.path.realpath(path))
     handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
                                          suffix=".tmp")
     os.close(handle)
@@ -20,7 +46,20 @@ def temporary_beside(path) -> str:
 
 def replace_atomically(temporary, path) -> None:
     """Move a finished temporary file onto ``path``, keeping the mode of a file it replaces
-    (a private results file stays private) or giving a new one the usual mode."""
+    (a private results file stays private) or giving a new one the usual mode.
+
+    A ``path`` that is not a regular file (a device, a FIFO) receives the temporary file's
+    bytes in place instead, and the temporary file is removed.
+    """
+    if not is_regular_or_new(path):
+        try:
+            with open(temporary, "rb") as source, open(path, "wb") as target:
+                while block := source.read(1 << 20):
+                    target.write(block)
+        finally:
+            os.unlink(temporary)
+        return
+    path = os.path.realpath(path)
     try:
         mode = os.stat(path).st_mode & 0o777
     except FileNotFoundError:
@@ -29,3 +68,128 @@ def replace_atomically(temporary, path) -> None:
         mode = 0o666 & ~umask
     os.chmod(temporary, mode)
     os.replace(temporary, path)
+
+
+# What each write error means for the person running mcfit, and what to do about it.
+_ADVICE = {
+    errno.ENOSPC: "the disk is full; free some space or write elsewhere",
+    errno.EDQUOT: "the disk quota is used up; free some space or write elsewhere",
+    errno.EFBIG: "the file-size limit (ulimit -f) was reached; raise it or write elsewhere",
+    errno.EROFS: "the file system is read-only; write elsewhere",
+    errno.EACCES: "check its permissions, or write elsewhere",
+    errno.EPERM: "check its permissions, or write elsewhere",
+    errno.EIO: "the device reported an error; check it, or write elsewhere",
+    errno.ENOENT: "check that the directory exists and is writable",
+    errno.ENOTDIR: "check that the directory exists and is writable",
+}
+
+
+class Output:
+    """A text output that is whole or absent: stdout (``-``), a file, a device or a FIFO.
+
+    Write with :meth:`write`; end with :meth:`commit` (the file then holds everything
+    written) or :meth:`discard` (a regular file is left as it was). Every ``OSError`` is
+    raised as :class:`mcfit.errors.OutputError` naming the output, the cause and the fix,
+    or as :class:`mcfit.errors.ClosedOutputError` when the reader has gone away.
+
+    Parameters
+    ----------
+    path : str
+        ``-`` for stdout, else the file to write.
+    """
+
+    def __init__(self, path: str):
+        self.path = path
+        self.name = "stdout" if path == "-" else path
+        self.temporary = None
+        self._existed = path != "-" and os.path.exists(path)
+        try:
+            if path == "-":
+                self.stream = sys.stdout
+            elif not is_regular_or_new(path):
+                self.stream = open(path, "w", newline="")
+            else:
+                # The directory's permissions would let the file be renamed over; its own
+                # say that it is not to be changed (cp would refuse it too).
+                if self._existed and not _may_write(path):
+                    raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), path)
+                self.temporary = temporary_beside(path)
+                self.stream = open(self.temporary, "w", newline="")
+        except OSError as error:
+            self.discard()
+            raise self._error(error) from None
+
+    def write(self, text: str) -> None:
+        """Write ``text`` and pass it on at once (a reader sees whole records as they come)."""
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except OSError as error:
+            raise self._error(error) from None
+
+    def write_with(self, write) -> None:
+        """Call ``write(stream)`` for output written in many small pieces (no flush each)."""
+        try:
+            write(self.stream)
+        except OSError as error:
+            raise self._error(error) from None
+
+    def commit(self) -> None:
+        """Make the output whole: flush stdout or the device, or move the file into place."""
+        try:
+            self.stream.flush()
+            if self.temporary is not None:
+                os.fsync(self.stream.fileno())
+                self.stream.close()
+                replace_atomically(self.temporary, self.path)
+                self.temporary = None
+            elif self.stream is not sys.stdout:
+                self.stream.close()
+        except OSError as error:
+            failure = self._error(error)
+            self.discard()
+            raise failure from None
+
+    def discard(self) -> None:
+        """Close without completing: remove the temporary file, keep a file it would replace.
+
+        After an error on stdout, stdout is pointed at /dev/null, so that the interpreter's
+        last flush at exit does not fail again with a traceback.
+        """
+        stream = getattr(self, "stream", None)
+        if stream is sys.stdout:
+            _silence_stdout()
+        elif stream is not None:
+            try:
+                stream.close()
+            except OSError:
+                pass  # what could not be written is thrown away
+        if self.temporary is not None:
+            Path(self.temporary).unlink(missing_ok=True)
+            self.temporary = None
+
+    def _error(self, error: OSError) -> OutputError:
+        if error.errno == errno.EPIPE:
+            return ClosedOutputError(f"the reader of {self.name} has gone away")
+        cause = error.strerror or str(error)
+        advice = _ADVICE.get(error.errno, "write elsewhere")
+        kept = (f"; {self.path} was left as it was"
+                if self._existed and self.temporary is not None else "")
+        return OutputError(f"cannot write {self.name}: {cause}; {advice}{kept}.")
+
+
+def _may_write(path) -> bool:
+    effective = os.access in os.supports_effective_ids  # as the checks of open() are made
+    return os.access(path, os.W_OK, effective_ids=effective)
+
+
+def _silence_stdout() -> None:
+    try:
+        descriptor = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):
+        return  # not a real file (a test's capture): nothing flushes it at exit
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, descriptor)
+    finally:
+        os.close(devnull)
