@@ -14,6 +14,8 @@ the printed table:
   forced to the true model and with the model it selects), the log decrement of
   single-sample peaks (:func:`log_decrement_rate`) and a Hilbert-envelope fit
   (:func:`hilbert_envelope_rate`).
+- **verdicts** (:mod:`mcfit.bench_verdicts`): the rates of the true model, a spurious and
+  a missed term, and the coverage of the 95 % intervals of a, b, c and Q, per scene.
 - **throughput** (:func:`run_throughput`): records per second through
   :func:`mcfit.analysis.analyse_record` in memory and through ``mcfit DIR --jobs 1`` and
   ``--jobs 2`` (:func:`mcfit.batch.run_jobs` over CSV files, run as a subprocess), peak
@@ -71,7 +73,7 @@ __all__ = [
     "run",
 ]
 
-SECTIONS = ("integrators", "fitting", "throughput")
+SECTIONS = ("integrators", "fitting", "verdicts", "throughput")
 
 # The common grid on which every integrator is compared with the reference (a divisor of
 # every fixed step's steps per period, so simulate_record samples the steps without
@@ -195,6 +197,8 @@ class BenchConfig:
         Number and length of the records of the throughput section.
     startup_runs : int
         Runs of each start-up command (the median is reported).
+    verdict_records : int
+        Noisy records per scene of the verdicts section.
     seed : int
         Seed of every random record.
     integrator_scenes, fit_scenes : tuple
@@ -210,6 +214,7 @@ class BenchConfig:
     batch_records: int = 20
     batch_samples: int = 10_000
     startup_runs: int = 3
+    verdict_records: int = 40
     seed: int = 2026
     integrator_scenes: tuple = INTEGRATOR_SCENES
     fit_scenes: tuple = FIT_SCENES
@@ -219,7 +224,7 @@ QUICK = BenchConfig()
 FULL = BenchConfig(name="full", steps_per_period=(50, 100, 250, 500, 1000, 2500, 5000),
                    rtols=(1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11),
                    snrs=(1e2, 1e3, 1e4), samples_per_cycle=(10, 20, 50, 200), repeats=100,
-                   batch_records=200, startup_runs=7)
+                   batch_records=200, startup_runs=7, verdict_records=400)
 
 
 def machine_summary(config: BenchConfig) -> str:
@@ -1013,5 +1018,10 @@ def run(config: BenchConfig = QUICK, sections=SECTIONS, plot_dir=None, progress=
         yield format_fitting(cells, config)
         if plot_dir is not None:
             plot_fitting(cells, config, os.path.join(plot_dir, "fitting.png"))
+    if "verdicts" in sections:
+        from mcfit.bench_verdicts import format_verdicts, run_verdicts
+
+        yield format_verdicts(run_verdicts(config.verdict_records, config.seed,
+                                           progress=progress))
     if "throughput" in sections:
         yield format_throughput(run_throughput(config, progress))
