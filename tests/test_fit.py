@@ -100,7 +100,7 @@ def test_two_terms_that_mimic_a_third_must_pass_a_joint_test():
     assert boundary_lrt_p_value(chi["bc"], chi["abc"], t.size, 4) < LRT_ALPHA
     assert boundary_lrt_p_value(chi["ab"], chi["abc"], t.size, 4) < LRT_ALPHA
     assert result.model == "b"
-    [dropped] = [w for w in result.warnings if w.startswith("fluid and coulomb terms dropped")]
+    [dropped] = [w for w in result.warnings if w.startswith("fluid and Coulomb terms dropped")]
     assert float(re.search(r"\(p = ([0-9.e+-]+)\)", dropped).group(1)) > LRT_ALPHA
 
 

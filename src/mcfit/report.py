@@ -204,8 +204,8 @@ def _regimes_lines(fit) -> list[str]:
         resolved = "" if fit.resolved else "; not resolved"
         lines = [f"  regimes present: {present} (model {fit.model}, {how}{resolved})"]
     for k, p in fit.lrt_p_values.items():
-        lines.append(f"    {REGIME_NAMES[k]:11s} term: p = {p:.2g} (the chance that noise alone "
-                     "gives so large a gain in fit)")
+        lines.append(f"    {REGIME_NAMES[k]:11s} term: p = {p:.2g} (chance of so large a gain in "
+                     "fit by noise alone)")
     return lines
 
 

@@ -12,7 +12,7 @@ from mcfit.errors import FitError
 from mcfit.fit import uncertainty
 from mcfit.fit.candidates import Candidate, fit_candidates, fit_reported, make_candidate
 from mcfit.fit.models import CRITERIA, MODELS, NONE, POWER, REGIME_NAMES, TERMS, \
-    parse_model, terms_of
+    parse_model, regime_list, terms_of
 from mcfit.fit.power import PowerLawFit, fit_power_law
 from mcfit.fit.problem import PARAMETERS, ScaledRecord
 from mcfit.fit.selection import LRT_ALPHA, Selection, select_model
@@ -274,14 +274,12 @@ def _tie_warning(selection, y_fit):
         return []
     tied = (selection.preferred,) + selection.ties
     if len(terms_of(selection.preferred)) == 1:
-        names = [REGIME_NAMES[k].replace("coulomb", "Coulomb") for k in TERMS
-                 if any(k == terms_of(m) for m in tied)]
+        listed = regime_list(k for k in TERMS if any(k == terms_of(m) for m in tied))
         said = "reported as constant Q"
     else:
-        names = [" and ".join(REGIME_NAMES[k] for k in terms_of(m)).replace("coulomb", "Coulomb")
-                 for m in tied]
+        names = [regime_list(terms_of(m)) for m in tied]
+        listed = ", ".join(names[:-1]) + " or " + names[-1]
         said = f"reported as {names[0]}, which {selection.criterion.upper()} prefers"
-    listed = ", ".join(names[:-1]) + " and " + names[-1]
     low, high = float(np.min(y_fit)), float(np.max(y_fit))
     digits = max(3, 2 + int(math.ceil(-math.log10(max((high - low) / high, 1e-12)))))
     return [f"the record spans amplitudes {low:.{digits}g} to {high:.{digits}g}: {listed} "

@@ -12,7 +12,7 @@ import itertools
 from mcfit.errors import FitError
 
 __all__ = ["TERMS", "NONE", "POWER", "MODELS", "REGIME_NAMES", "CRITERIA", "terms_of",
-           "parse_model"]
+           "parse_model", "regime_list"]
 
 TERMS = ("a", "b", "c")
 NONE = "none"  # constant amplitude: no damping
@@ -44,3 +44,9 @@ def parse_model(text: str) -> str:
     raise FitError(f"model {text!r} is not a set of damping terms: use letters from 'abc' "
                    "(a fluid, b hysteretic, c Coulomb; e.g. 'ab'), 'none' or 'power'",
                    option="model")
+
+
+def regime_list(terms) -> str:
+    """The regimes of ``terms`` for a sentence: "fluid, hysteretic and Coulomb"."""
+    names = [REGIME_NAMES[k].replace("coulomb", "Coulomb") for k in terms]
+    return ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else "".join(names)

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 from scipy import special
 
-from mcfit.fit.models import NONE, REGIME_NAMES, TERMS, terms_of
+from mcfit.fit.models import NONE, TERMS, regime_list, terms_of
 
 __all__ = ["LRT_ALPHA", "TIE_DELTA", "NEAR_FACTOR", "Selection", "select_model",
            "boundary_lrt_p_value"]
@@ -70,16 +70,21 @@ class Selection:
         out = []
         for larger, smaller, p in self.dropped:
             gone = [k for k in terms_of(larger) if k not in terms_of(smaller)]
-            names = " and ".join(REGIME_NAMES[k] for k in gone)
+            names = regime_list(gone)
             them = "them" if len(gone) > 1 else "it"
             out.append(f"{names} term{'s' if len(gone) > 1 else ''} dropped: "
                        f"{self.criterion.upper()} kept {them} but the likelihood-ratio test "
                        f"does not support {them} (p = {p:.2g})")
-        for k, p in self.near_threshold.items():
-            state = "kept" if k in self.terms else "left out"
-            out.append(f"{REGIME_NAMES[k]} term {state} near the detection threshold "
-                       f"(p = {p:.2g} against alpha = {self.alpha:g}): the intervals do not "
-                       "include the uncertainty of this choice; bootstrap intervals redo it")
+        for state in ("kept", "left out"):
+            near = {k: p for k, p in self.near_threshold.items()
+                    if (k in self.terms) == (state == "kept")}
+            if near:
+                names = regime_list(near)
+                ps = ", ".join(f"{p:.2g}" for p in near.values())
+                out.append(f"{names} term{'s' if len(near) > 1 else ''} {state} near the "
+                           f"detection threshold (p = {ps} against alpha = {self.alpha:g}): "
+                           "the intervals do not include the uncertainty of this choice; "
+                           "bootstrap intervals redo it")
         return out
 
 
