@@ -165,6 +165,78 @@ def test_seconds_spelled_out_are_seconds():
     assert record.time_unit == "s"
 
 
+# --------------------------------------------------------------------------- timestamps
+
+
+def test_a_few_glitched_timestamps_are_set_right():
+    # phyphox: 12 timestamps stepping back in 18,000 rows (a phone-sensor glitch).
+    rng = np.random.default_rng(16)
+    t = np.arange(18000) * 0.01
+    x = np.round(2 * np.exp(-0.02 * t) * np.cos(2 * np.pi * 0.8 * t), 6)
+    stamped = t.copy()
+    bad = rng.choice(np.arange(100, t.size - 100), 12, replace=False)
+    stamped[bad] -= 0.015
+    text = '"Time (s)","Angle (rad)"\n' + "".join(f"{a:.6E},{b:.6E}\n"
+                                                  for a, b in zip(stamped, x))
+    record = read_record(write("phyphox.csv", text))
+    check(record, t, x)
+    assert any(note.startswith("12 glitched timestamps") and "12 set to the middle" in note
+               for note in record.notes)
+
+
+def test_a_repeated_timestamp_is_set_right_and_a_wild_one_dropped():
+    t = np.arange(2000) * 0.01
+    x = np.round(np.exp(-0.05 * t) * np.cos(2 * np.pi * t), 6)
+    stamped = t.copy()
+    stamped[500] = stamped[499]      # repeated
+    stamped[1200:1202] = 3.0         # two in a row, far back: dropped
+    text = "time,x\n" + "".join(f"{a:.2f},{b}\n" for a, b in zip(stamped, x))
+    record = read_record(write("glitch.csv", text))
+    keep = np.ones(t.size, dtype=bool)
+    keep[1200:1202] = False
+    check(record, t[keep], x[keep])
+    assert any("3 glitched timestamps" in note and "1 set to the middle" in note
+               and "2 rows dropped" in note for note in record.notes)
+
+
+def test_many_repeats_are_still_bursts():
+    t = np.repeat(np.arange(0.0, 10.0, 0.1), 2)
+    x = np.exp(-0.1 * t) * np.cos(2 * np.pi * t)
+    text = "t,x\n" + "".join(f"{a:.1f},{b:.6f}\n" for a, b in zip(t, x))
+    with pytest.raises(InputError, match="repeat the previous timestamp.*--rate"):
+        read_record(write("bursts.csv", text))
+
+
+def test_tracker_time_rounded_to_three_significant_figures():
+    t = np.arange(1, 900) / 30.0
+    x = np.round(0.3 * np.exp(-0.05 * t) * np.cos(2 * np.pi * 0.7 * t), 4)
+    printed = [np.format_float_positional(v, precision=3, unique=False, fractional=False)
+               for v in t]
+    printed = [p.rstrip(".") if p.endswith(".") else p for p in printed]
+    text = "mass A\nt\tx\n" + "".join(f"{p}\t{b}\n" for p, b in zip(printed, x))
+    record = read_record(write("tracker.txt", text))
+    check(record, t, x)
+    assert any("is rounded (to 3 significant figures)" in note and "30 Hz" in note
+               for note in record.notes)
+    assert not any("burst" in note for note in record.notes)
+
+
+def test_event_driven_encoder_log_keeps_its_times():
+    # An Arduino writes a line each time the encoder count changes: uneven times are real.
+    fine = np.arange(0, 60, 1e-5)
+    counts = np.round(12 * np.exp(-0.03 * fine) * np.cos(2 * np.pi * 0.5 * fine))
+    change = np.flatnonzero(np.diff(counts) != 0) + 1
+    micros = np.floor(fine[change] * 1e6).astype(np.int64)
+    text = "micros,count\n" + "".join(f"{a},{int(b)}\n" for a, b in zip(micros, counts[change]))
+    record = read_record(write("encoder.txt", text))
+    check(record, micros.astype(float), counts[change])
+    assert not any("--rate" in note for note in record.notes)
+    assert any("event-driven" in note for note in record.notes)
+
+
+# --------------------------------------------------------------------------- rows, bytes
+
+
 def test_data_written_in_rows():
     text = ",".join(f"{t:.3f}" for t in T) + "\n" + ",".join(f"{x:.4f}" for x in X) + "\n"
     record = read_record(write("rows.csv", text))
