@@ -381,3 +381,12 @@ def test_a_clock_time_that_cannot_be_read_names_its_column_row_and_options():
                                          "\\(column 1\\) of clock.csv \\(data row 401\\) is "
                                          "not a clock time like the others.*--time-col"):
         read_record(write("clock.csv", "\n".join(lines) + "\n"))
+
+
+def test_a_quoted_field_over_two_lines_is_shown_on_one_line():
+    rows = body().splitlines()
+    rows.insert(100, '2.001,"over\nload"')
+    text = "t,x\n" + "\n".join(rows) + "\n"
+    with pytest.raises(InputError, match="text 'over\\\\nload' in numeric column 'x'") as info:
+        read_record(write("quoted.csv", text))
+    assert "\n" not in str(info.value)

@@ -1412,14 +1412,14 @@ def _read_columns(table, indices):
                 row = int(np.flatnonzero((odd if odd.any() else bad).values)[0])
                 first = str(values[clockish].iloc[0])
                 raise InputError(
-                    f"'{values.iloc[row]}' in the clock-time column {_describe(table, index)} "
+                    f"'{_shown(values.iloc[row])}' in the clock-time column {_describe(table, index)} "
                     f"of {table.name} (data row {row + 1}) is not a clock time like the "
                     f"others ('{first}'). Fix or delete that row, or choose another time "
                     "column with --time-col or give --rate HZ.") from None
             if bad.any():
                 row = int(np.flatnonzero(bad.values)[0])
                 raise InputError(
-                    f"text '{values.iloc[row]}' in numeric column {_describe(table, index)} of "
+                    f"text '{_shown(values.iloc[row])}' in numeric column {_describe(table, index)} of "
                     f"{table.name} (data row {row + 1}). Fix or delete that row, or start it "
                     "with # to make it a comment.") from None
         columns = ", ".join(_describe(table, index) for index in indices)
@@ -1428,6 +1428,13 @@ def _read_columns(table, indices):
                          "number of columns.") from None
     return [frame.iloc[:, position].to_numpy(dtype=np.float64, copy=False)
             for position in range(len(indices))]
+
+
+def _shown(value):
+    """A cell's text for a one-line message: a quoted field may span lines."""
+    text = str(value)
+    text = text.replace("\r\n", "\n").replace("\r", "\n").replace("\n", "\\n")
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _timestamp_problem(t):
