@@ -390,3 +390,35 @@ def test_a_quoted_field_over_two_lines_is_shown_on_one_line():
     with pytest.raises(InputError, match="text 'over\\\\nload' in numeric column 'x'") as info:
         read_record(write("quoted.csv", text))
     assert "\n" not in str(info.value)
+
+
+def test_one_column_with_decimal_commas_and_no_header():
+    values = np.round(38.0169 + X / 10, 4)
+    text = "".join(f"{v:.4f}".replace(".", ",") + "\n" for v in values)
+    record = read_record(write("bare.csv", text), rate=50)
+    np.testing.assert_allclose(record.x, values, rtol=0, atol=1e-12)
+    # Two integer columns stay two columns.
+    pairs = "".join(f"{i},{int(v * 100)}\n" for i, v in enumerate(values))
+    record = read_record(write("pairs.csv", pairs))
+    np.testing.assert_allclose(record.x, np.floor(values * 100 + 1e-9))
+
+
+def test_capstone_run_headers_name_the_time():
+    text = "Time (s) Run #1,Position (m) Run #1\n" + body()
+    record = read_record(write("capstone.csv", text))
+    check(record)
+    assert record.time_column == "Time (s) Run #1" and record.time_unit == "s"
+    assert any("chosen automatically" in note and "Time (s) Run #1" in note
+               for note in record.notes)
+
+
+def test_files_past_the_first_megabyte():
+    t = np.round(np.arange(80000) * 0.01, 2)
+    x = np.round(np.exp(-0.01 * t) * np.cos(2 * np.pi * t), 6)
+    rows = "".join(f"{a:.2f};{b:.6f}\n".replace(".", ",") for a, b in zip(t, x))
+    assert len(rows) > 1 << 20
+    record = read_record(write("long.csv", "t;x\ns;V\n" + rows + "\nEnd of run\n"))
+    check(record, t, x)
+    assert "1 line of text after the data skipped (starting 'End of run')" in record.notes
+    path = write("cut.csv", ("t;x\n" + rows).encode() + b"\x00" * 5000)
+    check(read_record(path), t, x)

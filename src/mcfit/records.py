@@ -882,6 +882,8 @@ def _find_layout(content):
             above = [c for c in classes[:run_start] if c[0] == "text"]
             header_fields = above[-1][1] if above else None
             matches = header_fields is not None and len(header_fields) == width
+            if header_fields is None and decimal_comma and width == 1:
+                matches = _zero_padded_fractions(content[run_start:run_start + 200])
             score = (run, matches, width > 1, sep is not None, not decimal_comma)
             if best_score is None or score > best_score:
                 layout = _Layout(sep, decimal_comma, width, classes, content)
@@ -998,6 +1000,19 @@ def _is_units_row(fields, width):
                     for f in tokens))
 
 
+_INTEGER_COMMA_INTEGER = re.compile(r"^[+-]?\d+,(\d+)$")
+
+
+def _zero_padded_fractions(content):
+    """Whether lines such as '38,0169' are one number with a decimal comma: every line is
+    two integers around one comma and some second integer has a leading zero, which no
+    program writes for an integer."""
+    matches = [_INTEGER_COMMA_INTEGER.match(line) for _, line in content]
+    numbered = [m for m in matches if m]
+    return (len(numbered) >= 0.9 * len(matches) and len(numbered) >= 3
+            and any(len(m.group(1)) > 1 and m.group(1)[0] == "0" for m in numbered))
+
+
 def _surely_plain(content, tail_content):
     """A quick look for the usual file, to spare it the search for a layout: one header
     line at most, as wide as the numeric lines below it (first lines and last lines)."""
@@ -1014,6 +1029,8 @@ def _surely_plain(content, tail_content):
     if len(widths) != 1:
         return False
     width = widths.pop()
+    if sep == "," and width == 2 and _zero_padded_fractions(content[:200]):
+        return False
     kind, fields = _classify_line(content[0][1], sep, decimal_comma)
     if kind == "rule" or (kind == "text" and len(_header_fields(content[0][1], sep, width))
                           != width):
@@ -1060,7 +1077,7 @@ def _header_rows(layout):
         units = rows.pop()
     names = None
     if rows:
-        timed = [r for r in rows if any(_base_name(f)[0] in _TIME_NAMES for f in r)]
+        timed = [r for r in rows if any(_is_time_name(f) for f in r)]
         names = list(timed[0] if timed else rows[-1])
     return names, units, header_rows, above[:len(above) - len(header_rows)]
 
@@ -1262,6 +1279,15 @@ def _base_name(label):
     return label.strip().lower(), None
 
 
+_RUN_SUFFIX = re.compile(r"\s*\brun\s*#?\s*\d+$")
+
+
+def _is_time_name(label):
+    """Whether a column label names the time ('Time (s)', 'Time (s) Run #1', 'X_Value')."""
+    base = _base_name(label)[0]
+    return base in _TIME_NAMES or _RUN_SUFFIX.sub("", base) in _TIME_NAMES
+
+
 def _resolve_column(table, spec, role):
     option = "--time-col" if role == "time" else "--signal-col"
     listing = ", ".join(table.names)
@@ -1307,7 +1333,7 @@ def _oscillation_score(values):
 
 def _choose_time(table, rate):
     sample = table.sample
-    named = [i for i, n in enumerate(table.names) if _base_name(n)[0] in _TIME_NAMES]
+    named = [i for i, n in enumerate(table.names) if _is_time_name(n)]
     # Elapsed seconds are the better time when the file also holds clock times.
     named = [i for i in named if i not in table.clock] + [i for i in named if i in table.clock]
     cycle_named = [i for i, n in enumerate(table.names) if _base_name(n)[0] in _CYCLE_NAMES]
