@@ -6,6 +6,12 @@ float64 arrays, ``t`` and ``x``, and says in ``Record.notes`` what it decided on
 person can fix raises :class:`mcfit.errors.InputError` (or ``UsageError`` for contradictory
 options) with one line naming the file, the problem and the fix.
 
+A file is judged by its content: a gzip or workbook signature, else text. Text that is more
+than a header line over numbers (header blocks, separator lines, a units row, repeated
+headers, notes after the data, D exponents, clock times, data in rows) is first rewritten
+by the tidying step as one header line over tab-separated numbers; a workbook sheet is
+turned into such text too, so every source meets the same column choice and checks.
+
 Column choice without options: a column named like time (``time``, ``t``, ``time (s)``...)
 or else the first strictly increasing column is the time; the signal is the first other
 column that oscillates (velocity, acceleration, residual and fit columns come last).
@@ -40,7 +46,8 @@ _SAMPLE_LINES = 20000
 # Line breaks of str.splitlines that pandas' parser does not break lines at.
 _PYTHON_ONLY_LINE_BREAKS = ("\x0b", "\x0c", "\x1c", "\x1d", "\x1e", "\x85", "\u2028", "\u2029")
 _TIME_NAMES = {"time", "t", "times", "tempo", "zeit", "temps", "tiempo", "seconds", "sec",
-               "timestamp", "stamp", "elapsed", "elapsed time"}
+               "timestamp", "stamp", "elapsed", "elapsed time", "time elapsed", "time_elapsed",
+               "elapsed_time", "x_value", "clock", "time stamp", "time_s", "latest: time"}
 _CYCLE_NAMES = {"n", "cycle", "cycles", "cycle number", "swing", "swings", "period number",
                 "peak", "peak number", "k", "index"}
 _SECONDARY_SIGNAL_WORDS = ("vel", "speed", "acc", "resid", "error", "err", "fit", "model",
@@ -120,13 +127,14 @@ def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None
     Parameters
     ----------
     source : str, os.PathLike or file-like
-        ``.csv``, ``.tsv``, ``.txt``, ``.dat`` (separator sniffed: comma, semicolon, tab or
-        whitespace; decimal comma accepted), ``.xlsx``/``.xlsm``, ``"-"`` for stdin, or an
-        open text or binary stream holding delimited text.
+        Delimited text of any extension (separator sniffed: comma, semicolon, tab or
+        whitespace; decimal comma accepted), gzip-compressed text, ``.xlsx``/``.xlsm``,
+        ``.ods`` and ``.xls`` (with pandas' engine installed), ``"-"`` for stdin, or an open
+        text or binary stream holding delimited text.
     time_col, signal_col : str or int, optional
         Column name (units in parentheses may be left out, case ignored) or 1-based index.
     sheet : str or int, optional
-        Excel sheet name or 1-based index (default: the first sheet).
+        Excel sheet name or 1-based index (default: the first sheet that holds numbers).
     rate : float, optional
         Sample rate in Hz: ``t = index / rate`` (for files without a usable time column).
     input : {"waveform", "turning-points"}, optional
@@ -173,6 +181,11 @@ class _Table:
     """Column names plus a way to read chosen columns as float64."""
 
     def __init__(self, name, names, sample, reader, notes, complete=False):
+        self.clock = []           # 0-based columns read from clock times
+        self.transposed = False   # the data were written in rows
+        self.token_lines = []     # the first data lines as text, for the time's resolution
+        self.sep = None
+        self.decimal = "."
         self.name = name          # file name for messages
         self.names = names        # list of column labels as shown to a user
         self.sample = sample      # DataFrame of floats (NaN where not numeric), first rows
@@ -209,22 +222,65 @@ def _open_table(source, sheet):
         raise InputError(f"{source} is not a regular file (a pipe, socket or device). Copy "
                          "the record to a file, or pipe it to mcfit as - (stdin).")
     suffix = path.suffix.lower()
-    if suffix in EXCEL_EXTENSIONS:
-        return _excel_table(path, name, sheet)
-    if suffix in (".xls", ".ods", ".numbers"):
-        raise InputError(f"unsupported file type '{suffix}' for {name}; save it as .xlsx or "
-                         "export it as CSV.")
-    if suffix not in TEXT_EXTENSIONS:
-        raise InputError(f"unsupported file type '{suffix or '(none)'}' for {name}; use .csv, "
-                         ".tsv, .txt, .dat or .xlsx (or rename a delimited text file to .csv).")
-    if sheet is not None:
-        raise UsageError(f"--sheet applies to Excel files only, and {name} is a text file.")
+    if suffix in _REFUSED_EXTENSIONS:
+        raise InputError(f"unsupported file type '{suffix}' for {name}; use .csv, .tsv, .txt, "
+                         ".dat or .xlsx (or export the data as delimited text).")
     try:
         with open(path, "rb") as handle:
             head = handle.read(_SNIFF_BYTES)
+            tail = b""
+            if len(head) == _SNIFF_BYTES:
+                size = handle.seek(0, 2)
+                handle.seek(max(len(head), size - _TAIL_BYTES))
+                tail = handle.read()
     except OSError as exc:
         raise InputError(f"cannot read {name}: {exc.strerror}. Check its permissions.") from None
-    return _text_table(name, head, path)
+    # The content decides, not the extension: a workbook or a gzip file by its signature,
+    # anything else (.lvm, .log, no extension) as text.
+    if head.startswith(_GZIP_SIGNATURE):
+        return _gzip_table(path, name, sheet)
+    if suffix in _EXCEL_ENGINES and not (suffix in EXCEL_EXTENSIONS
+                                         and head.startswith(_CFB_SIGNATURE)):
+        return _excel_table(path, name, sheet, suffix)
+    if suffix in EXCEL_EXTENSIONS or head.startswith(_ZIP_SIGNATURE):
+        return _excel_table(path, name, sheet, ".xlsx")
+    if head.startswith(_CFB_SIGNATURE):
+        return _excel_table(path, name, sheet, ".xls")
+    if sheet is not None:
+        raise UsageError(f"--sheet applies to Excel files only, and {name} is a text file.")
+    return _text_table(name, head, path, tail=tail)
+
+
+_GZIP_SIGNATURE = b"\x1f\x8b"
+_ZIP_SIGNATURE = b"PK\x03\x04"
+# Bytes read from the end of a file longer than the sniff, for notes or NUL bytes at its end.
+_TAIL_BYTES = 1 << 14
+# Files that are surely not a record, refused by name before reading.
+_REFUSED_EXTENSIONS = (".json", ".xml", ".html", ".htm", ".pdf", ".png", ".jpg", ".jpeg",
+                       ".gif", ".svg", ".doc", ".docx", ".ppt", ".pptx", ".numbers", ".mat",
+                       ".npy", ".npz", ".h5", ".hdf5", ".zip", ".7z", ".rar", ".mp4", ".mov",
+                       ".avi", ".wav", ".mp3", ".cmbl", ".py", ".ipynb")
+# Workbook extensions: pandas engine and the package that provides it.
+_EXCEL_ENGINES = {".xlsx": ("openpyxl", "openpyxl"), ".xlsm": ("openpyxl", "openpyxl"),
+                  ".xls": ("xlrd", "xlrd"), ".ods": ("odf", "odfpy")}
+
+
+def _gzip_table(path, name, sheet):
+    import gzip
+    import zlib
+    try:
+        data = gzip.decompress(path.read_bytes())
+    except (OSError, EOFError, zlib.error) as exc:
+        raise InputError(f"cannot decompress {name}: {exc}. The gzip file is damaged; "
+                         "decompress it with another program or export the data again.") from None
+    if data.startswith(_ZIP_SIGNATURE) or data.startswith(_CFB_SIGNATURE):
+        raise InputError(f"{name} holds a compressed workbook, which mcfit cannot open. "
+                         "Decompress it first.")
+    if sheet is not None:
+        raise UsageError(f"--sheet applies to Excel files only, and {name} is a text file.")
+    table = _text_table(name, data, None)
+    table.notes.insert(0, "gzip-compressed file decompressed")
+    return table
 
 
 def _to_bytes(data):
@@ -300,19 +356,49 @@ def _is_number(token):
     return bool(_NUMBER.match(token.strip())) or token.strip().lower() in ("nan", "inf", "-inf")
 
 
-def _text_table(name, head, path):
+def _text_table(name, head, path, tail=b"", tidied=None):
+    """A :class:`_Table` for delimited text; ``tidied`` is (names present, notes, clock
+    columns, transposed) for text already rewritten by :func:`_tidy_text`."""
     if not head or head.isspace():  # as head.strip() == b"", without copying the file
         raise InputError(f"{name} is empty. Give a file with a time and a signal column.")
     text, encoding, enc_note, exact_text = _decode(head)
+    notes = [enc_note] if enc_note else []
+    if tidied is None and (text.endswith("\x00") or tail.endswith(b"\x00")):
+        if path is not None and tail:
+            head, path, tail = _read_whole(name, path), None, b""
+            text, encoding, enc_note, exact_text = _decode(head)
+        text, nul_note = _drop_trailing_nul(text)
+        if nul_note:
+            notes.append(nul_note)
+            head, path, encoding, exact_text = text.encode("utf-8"), None, "utf-8", True
     problem = _binary_problem(text)
     if problem is not None:
         raise InputError(f"{name} is not a text record: it holds binary data ({problem}). "
                          "Give a CSV, TSV or text export of the data (an Excel workbook must "
                          "end in .xlsx).")
-    notes = [enc_note] if enc_note else []
     lines = text.splitlines()
     if path is not None and len(head) == _SNIFF_BYTES and lines:
-        lines = lines[:-1]  # the last line may be cut by the sniff limit
+        if len(lines) <= _MAX_ROWS_AS_DATA:  # a few very long lines: data written in rows
+            head, path, tail = _read_whole(name, path), None, b""
+            text, encoding, enc_note, exact_text = _decode(head)
+            lines = text.splitlines()
+        else:
+            lines = lines[:-1]  # the last line may be cut by the sniff limit
+    if tidied is None:
+        tail_lines = []
+        if tail and not encoding.startswith("utf-16"):
+            tail_lines = tail.decode(encoding, errors="replace").splitlines()[1:]
+        tidy = _tidy_text(name, lines, tail_lines)
+        if tidy is not None and path is not None and (tail or len(head) == _SNIFF_BYTES):
+            whole, _, _, _ = _decode(_read_whole(name, path))
+            tidy = _tidy_text(name, whole.splitlines(), [])
+        if tidy is not None:
+            tidy_text, tidy_notes, clock, transposed, has_names = tidy
+            return _text_table(name, tidy_text.encode("utf-8"), None,
+                               tidied=(has_names, notes + tidy_notes, clock, transposed))
+        clock, transposed = [], False
+    else:
+        has_names, notes, clock, transposed = tidied
     # Data lines: not blank, not a comment.
     comment_chars = set()
     first_content = None
@@ -331,9 +417,12 @@ def _text_table(name, head, path):
             break
     if not content:
         raise InputError(f"{name} holds only comments or blank lines. Give a file with data rows.")
-    sep, decimal = _sniff_separator([line for _, line in content[:50]])
-    first_fields = _split(content[0][1], sep)
-    has_header = not all(_is_number(f) or f == "" for f in first_fields)
+    if tidied is None:
+        sep, decimal = _sniff_separator([line for _, line in content[:50]])
+        first_fields = _split(content[0][1], sep)
+        has_header = not all(_is_number(f) or f == "" for f in first_fields)
+    else:  # one tab-separated header line (if any) and numbers with decimal points
+        sep, decimal, has_header = "\t", ".", has_names
     if has_header:
         names = _header_names(content[0][1], sep, content[1:])
         data_start = content[1][0] if len(content) > 1 else None
@@ -391,7 +480,31 @@ def _text_table(name, head, path):
     complete = (whole and plain and exact_text and other_comment is None
                 and sample.shape[0] > 0 and not np.isnan(sample.iat[0, -1])
                 and _lines_alike(text, lines[:data_start], sample_text))
-    return _Table(name, names, sample, reader, notes, complete=complete)
+    table = _Table(name, names, sample, reader, notes, complete=complete)
+    table.clock, table.transposed, table.decimal = clock, transposed, decimal
+    table.token_lines, table.sep = lines[data_start:data_start + 2000], sep
+    return table
+
+
+def _read_whole(name, path):
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"cannot read {name}: {exc.strerror}. Check its permissions.") from None
+
+
+def _drop_trailing_nul(text):
+    """(text, note): NUL bytes at the very end (a copy cut short by a power loss) dropped,
+    with the incomplete last line; text unchanged (no note) when NULs are elsewhere too."""
+    kept = text.rstrip("\x00")
+    if "\x00" in kept or not kept.strip():
+        return text, None
+    dropped = len(text) - len(kept)
+    note = f"{dropped} NUL bytes at the end dropped (the file was cut short, as by a power "
+    if kept.endswith(("\n", "\r")):
+        return kept, note + "loss while copying)"
+    return kept[:max(kept.rfind("\n"), 0)] + "\n", note + ("loss while copying), with the "
+                                                            "incomplete last line")
 
 
 def _sample_frame(sample_text, sep, decimal, comment, width):
@@ -526,76 +639,653 @@ def _sheet_name(sheets, sheet, name):
 _CFB_SIGNATURE = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # OLE compound file
 
 
-def _excel_table(path, name, sheet):
+def _excel_table(path, name, sheet, suffix):
+    engine, package = _EXCEL_ENGINES[suffix]
     try:
         with open(path, "rb") as handle:
             signature = handle.read(8)
     except OSError as exc:
         raise InputError(f"cannot read {name}: {exc.strerror or exc}. Check its "
                          "permissions.") from None
-    if signature == _CFB_SIGNATURE:
+    if signature == _CFB_SIGNATURE and engine == "openpyxl":
         # Excel saves a password-protected workbook as an OLE compound file holding the
         # encrypted package; an old binary .xls is one too. Neither is a zip .xlsx.
         raise InputError(f"{name} is a password-protected (encrypted) workbook or an old "
                          ".xls renamed .xlsx, which mcfit cannot open. In Excel remove the "
                          "password and save as .xlsx, or export CSV.")
     try:
-        book = pd.ExcelFile(path, engine="openpyxl")
-    except Exception as exc:  # zipfile.BadZipFile, KeyError, ValueError... from openpyxl
+        book = pd.ExcelFile(path, engine=engine)
+    except ImportError:
+        raise InputError(f"reading {suffix} workbooks such as {name} needs the Python package "
+                         f"{package}: install it (pip install {package}), or save the "
+                         "workbook as .xlsx or CSV.") from None
+    except Exception as exc:  # zipfile.BadZipFile, KeyError, ValueError... from the engine
         raise InputError(f"cannot read {name} as an Excel workbook ({type(exc).__name__}): the "
-                         "file is damaged or not .xlsx. Re-save it from Excel or export "
+                         f"file is damaged or not {suffix}. Re-save it from Excel or export "
                          "CSV.") from None
+    notes = []
     try:
-        sheet_name = _sheet_name(book.sheet_names, sheet, name)
-        raw = pd.read_excel(book, sheet_name=sheet_name, header=None)
-    except (InputError, UsageError):
-        raise
-    except Exception as exc:
-        raise InputError(f"cannot read sheet {sheet!r} of {name} ({type(exc).__name__}). "
-                         "Re-save the workbook or export CSV.") from None
+        if sheet is not None:
+            sheet_name = _sheet_name(book.sheet_names, sheet, name)
+            raw = _read_sheet(book, sheet_name, sheet)
+        else:
+            # A first sheet of notes: the data are on the first sheet that holds numbers.
+            for sheet_name in book.sheet_names:
+                raw = _read_sheet(book, sheet_name, sheet)
+                if _numeric_rows(raw) >= 2:
+                    break
+            else:
+                sheet_name = book.sheet_names[0]
+                raw = _read_sheet(book, sheet_name, sheet)
+            if sheet_name != book.sheet_names[0]:
+                notes.append(f"the first sheet, '{book.sheet_names[0]}', holds no data")
     finally:
         book.close()
+    if engine == "openpyxl" and _suspect_formulas(raw):
+        _refuse_uncached_formulas(path, name, sheet_name)
     raw = raw.dropna(how="all").dropna(axis=1, how="all")
     if raw.empty:
         raise InputError(f"sheet '{sheet_name}' of {name} is empty. Choose the sheet holding "
                          "the data with --sheet.")
-    raw.columns = range(raw.shape[1])
-    first = raw.iloc[0]
-    has_header = any(isinstance(v, str) and not _is_number(v) for v in first)
-    if has_header:
-        names = [str(v).strip() if isinstance(v, str) or not pd.isna(v) else f"column {i + 1}"
-                 for i, v in enumerate(first)]
-        body = raw.iloc[1:]
-        if body.empty:
-            raise InputError(f"sheet '{sheet_name}' of {name} has a header row but no data "
-                             "rows. Add data below the header.")
-    else:
-        names = [f"column {i + 1}" for i in range(raw.shape[1])]
-        body = raw
-    text = body.astype(str).replace({"nan": "", "None": ""})
-    decimal = "," if text.apply(lambda c: c.str.match(_COMMA_DECIMAL.pattern)).any().any() else "."
-    numeric = _numeric_frame(text, decimal)
-    notes = [f"sheet '{sheet_name}'"]
-    if decimal == ",":
+    text = "".join("\t".join(_cell_text(v) for v in row) + "\n"
+                   for row in raw.itertuples(index=False, name=None))
+    table = _text_table(name, text.encode("utf-8"), None)
+    table.notes[:0] = [f"sheet '{sheet_name}'"] + notes
+    return table
+
+
+def _read_sheet(book, sheet_name, sheet):
+    try:
+        return pd.read_excel(book, sheet_name=sheet_name, header=None)
+    except Exception as exc:
+        raise InputError(f"cannot read sheet {sheet_name!r} of {book.io} "
+                         f"({type(exc).__name__}). Re-save the workbook or export CSV.") from None
+
+
+def _numeric_rows(raw):
+    """Rows with at least one number, date or time cell."""
+    def numeric(v):
+        return (not isinstance(v, (str, bool)) and not pd.isna(v)) if not isinstance(
+            v, str) else _is_number(v)
+    return sum(any(numeric(v) for v in row) for row in raw.itertuples(index=False, name=None))
+
+
+def _cell_text(value):
+    """One cell as the text a CSV export would hold (floats exact, dates in ISO form)."""
+    import datetime
+    if isinstance(value, str):
+        return " ".join(value.split())
+    if value is None or (not isinstance(value, (datetime.time, bool)) and pd.isna(value)):
+        return ""
+    if isinstance(value, (bool, np.bool_)):
+        return str(value)
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    if isinstance(value, datetime.datetime):
+        return value.isoformat(sep=" ")
+    if isinstance(value, datetime.time):
+        return value.isoformat()
+    if isinstance(value, datetime.timedelta):
+        return repr(value.total_seconds())
+    return " ".join(str(value).split())
+
+
+def _suspect_formulas(raw):
+    """Whether a column is a header alone (as formula cells without saved values read)."""
+    raw = raw.dropna(how="all")
+    if raw.shape[0] < 3:
+        return True
+    filled = raw.notna().sum(axis=0)
+    return bool(((filled == 1) & raw.iloc[0].notna()).any())
+
+
+def _refuse_uncached_formulas(path, name, sheet_name):
+    """Raise when the sheet's formulas have no saved values: a program such as a Python
+    script wrote the formulas, and nothing has calculated them since."""
+    import openpyxl
+    try:
+        formulas = openpyxl.load_workbook(path, read_only=True, data_only=False)
+        values = openpyxl.load_workbook(path, read_only=True, data_only=True)
+    except Exception:  # the workbook was read once already; leave the rest to the reader
+        return
+    try:
+        first = None
+        header = {}
+        for row_f, row_v in zip(formulas[sheet_name].iter_rows(),
+                                values[sheet_name].iter_rows()):
+            for cell_f, cell_v in zip(row_f, row_v):
+                if getattr(cell_f, "data_type", None) == "s" and cell_f.value is not None:
+                    header.setdefault(cell_f.column, str(cell_f.value))
+                if getattr(cell_f, "data_type", None) == "f" and cell_v.value is None:
+                    first = cell_f
+                    break
+            if first is not None:
+                break
+    finally:
+        formulas.close()
+        values.close()
+    if first is None:
+        return
+    column = header.get(first.column)
+    where = f"column '{column}', " if column else ""
+    raise InputError(f"the formula cells of sheet '{sheet_name}' of {name} have no saved "
+                     f"values ({where}cell {first.coordinate}, row {first.row}): the program "
+                     "that wrote the file did not calculate them. Open it in a spreadsheet "
+                     "program (Excel, LibreOffice Calc) and save it, then read it again.")
+
+
+# --------------------------------------------------------------------------- tidying
+# Exports from loggers and lab software wrap the numbers in more than a header line: header
+# blocks, separator lines, a units row, repeated headers, notes at the end, Fortran D
+# exponents, clock times, data written in rows. The layout of such a file is found here and
+# the file rewritten as one header line plus tab-separated numbers, which the plain reader
+# then reads; a plain file is left to the plain reader as it is.
+
+_NUMBER_TOKEN = re.compile(r"^[+-]?(\d+([.,]\d*)?|[.,]\d+)([eEdD][+-]?\d+)?$")
+_SPECIAL_TOKENS = {"nan", "inf", "-inf", "+inf", "na", "n/a", "null", "none", "-nan"}
+_FORTRAN_EXPONENT = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)[dD][+-]?\d+$")
+# Clock times: "16:04:31.273", "4:31.2" (minutes), ISO dates with a time.
+_CLOCK = re.compile(r"^(\d{1,2}:)?\d{1,2}:\d{2}([.,]\d+)?$")
+_ISO_DATE_TIME = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{1,2}:\d{2}(:\d{2}([.,]\d+)?)?"
+                            r"(Z|[+-]\d{2}:?\d{2})?$")
+_DATE_SPACE_TIME = re.compile(r"(\d{4}-\d{2}-\d{2}) (\d{1,2}:\d{2})")
+# A line of dashes, equals signs or stars (with separators between), as under a header.
+_RULE_LINE = re.compile(r"^[\s\-=_*~+|,;:]*$")
+_RULE_CHARACTERS = re.compile(r"[-=_*~]{3,}")
+# A units row: short tokens such as s, m, V, m/s^2, deg, rad, (s), [mm].
+_UNIT_TOKEN = re.compile(r"^[\(\[]?[A-Za-zµμ°%Ω][A-Za-z0-9µμ°%Ω/^*·.\- ]{0,9}[\)\]]?$")
+# Rows as data: at most this many rows, each at least this many values long.
+_MAX_ROWS_AS_DATA = 4
+_MIN_VALUES_IN_A_ROW = 20
+# Lines classified to find the layout (plus the last lines of the file).
+_LAYOUT_LINES = 400
+
+
+def _token_kind(token, decimal_comma):
+    """'num', 'clock', 'empty' or 'text' for one field."""
+    if not token:
+        return "empty"
+    if _NUMBER_TOKEN.match(token):
+        return "num" if decimal_comma or "," not in token else "text"
+    if token.lower() in _SPECIAL_TOKENS:
+        return "num"
+    if _CLOCK.match(token) or _ISO_DATE_TIME.match(token):
+        return "clock"
+    return "text"
+
+
+def _line_fields(line, sep):
+    if sep is None:
+        # "2024-03-01 16:04:31" is one field, not two, in whitespace-separated text.
+        line = _DATE_SPACE_TIME.sub(r"\1T\2", line)
+    return _split(line, sep)
+
+
+def _classify_line(line, sep, decimal_comma):
+    """('num' | 'rule' | 'text', fields) for one stripped content line."""
+    if _RULE_LINE.match(line) and _RULE_CHARACTERS.search(line):
+        return "rule", []
+    fields = _line_fields(line, sep)
+    kinds = [_token_kind(f, decimal_comma) for f in fields]
+    if all(k != "text" for k in kinds) and any(k in ("num", "clock") for k in kinds):
+        return "num", fields
+    return "text", fields
+
+
+class _Layout:
+    """Where the numbers are in a text file, and what else it holds."""
+
+    def __init__(self, sep, decimal_comma, width, classes, content):
+        self.sep = sep
+        self.decimal_comma = decimal_comma
+        self.width = width
+        self.classes = classes      # per content line: (kind, fields)
+        self.content = content      # [(line number, stripped line)]
+        self.start = None           # content index of the first data line
+        self.run = 0                # data lines in the first block
+
+
+def _find_layout(content):
+    """The separator and data block that explain the most lines, as a :class:`_Layout`."""
+    best, best_score = None, None
+    header_fields = None
+    for sep in (";", "\t", ",", None):
+        for decimal_comma in ((False,) if sep == "," else (True, False)):
+            classes = [_classify_line(line, sep, decimal_comma) for _, line in content]
+            # The longest block of numeric lines of one width (rules and text may not cut
+            # it short only at its start: the first such block counts).
+            run_start, run, width = None, 0, None
+            i = 0
+            while i < len(classes):
+                kind, fields = classes[i]
+                if kind != "num":
+                    i += 1
+                    continue
+                w = len(fields)
+                j, count = i, 0
+                while j < len(classes) and classes[j][0] in ("num", "rule") and (
+                        classes[j][0] == "rule" or len(classes[j][1]) == w):
+                    count += classes[j][0] == "num"
+                    j += 1
+                if count > run:
+                    run_start, run, width = i, count, w
+                i = max(j, i + 1)
+            if not run:
+                continue
+            # The data start at the first numeric line of that width: text lines further
+            # down (a bad value, a repeated header) are not a header block.
+            run_start = next(k for k, c in enumerate(classes)
+                             if c[0] == "num" and len(c[1]) == width)
+            # The line above the block, if text, is the header: its width should match.
+            above = [c for c in classes[:run_start] if c[0] == "text"]
+            header_fields = above[-1][1] if above else None
+            matches = header_fields is not None and len(header_fields) == width
+            if header_fields is None and decimal_comma and width == 1:
+                matches = _zero_padded_fractions(content[run_start:run_start + 200])
+            score = (run, matches, width > 1, sep is not None, not decimal_comma)
+            if best_score is None or score > best_score:
+                layout = _Layout(sep, decimal_comma, width, classes, content)
+                layout.start, layout.run = run_start, run
+                best, best_score = layout, score
+    return best
+
+
+def _layout_is_plain(layout):
+    """Whether the plain reader reads this file as it is (one header line at most, no
+    rules, units, D exponents, clock times, one-column decimal commas or rows of data)."""
+    if layout is None:
+        return True
+    if layout.start > 1:
+        return False
+    if any(kind == "rule" for kind, _ in layout.classes):
+        return False
+    if layout.decimal_comma and layout.width == 1:
+        return False
+    if layout.run <= _MAX_ROWS_AS_DATA and layout.width >= _MIN_VALUES_IN_A_ROW:
+        return False
+    for kind, fields in layout.classes[layout.start:layout.start + 50]:
+        if kind == "num" and any(_FORTRAN_EXPONENT.match(f) or _CLOCK.match(f)
+                                 or _ISO_DATE_TIME.match(f) for f in fields):
+            return False
+    header = layout.content[layout.start - 1][1] if layout.start else None
+    data_lines = [c for c in layout.classes[layout.start:] if c[0] != "rule"]
+    if header is not None and any(line == header for _, line in
+                                  layout.content[layout.start:]):
+        return False  # a repeated header
+    # Text after the last numeric line: notes at the end.
+    return not (len(data_lines) > 1 and _is_note(data_lines[-1], layout))
+
+
+def _is_note(line_class, layout):
+    """Whether a text line below the data is a note rather than a row with a bad value
+    (which must be reported, not dropped): it is not as wide as the data or does not start
+    with a number."""
+    kind, fields = line_class
+    return kind == "text" and (len(fields) != layout.width or _token_kind(
+        fields[0], layout.decimal_comma) not in ("num", "clock"))
+
+
+def _tidy_text(name, lines, tail_lines=()):
+    """(text, notes, clock_columns, transposed) or None when the plain reader suffices.
+
+    ``text`` is the record rewritten as an optional tab-separated header line and
+    tab-separated numbers with decimal points.
+    """
+    comment_chars = set()
+
+    def content_lines(numbered, limit):
+        out = []
+        for number, line in numbered:
+            stripped = line.strip()
+            if not stripped:
+                continue
+            if stripped[0] in "#%":
+                comment_chars.add(stripped[0])
+                continue
+            out.append((number, stripped))
+            if len(out) >= limit:
+                break
+        return out
+
+    # The first lines and the last ones decide whether the plain reader suffices; a long
+    # file is scanned whole only when it does not.
+    content = content_lines(enumerate(lines), _LAYOUT_LINES)
+    if not content:
+        return None
+    whole = len(content) < _LAYOUT_LINES
+    last = [] if whole else content_lines(
+        ((n, lines[n]) for n in range(len(lines) - 1, content[-1][0], -1)), 20)[::-1]
+    tail_content = [(-1, line.strip()) for line in tail_lines[-20:] if line.strip()
+                    and line.strip()[0] not in "#%"]
+    window = content + last + tail_content
+    if _surely_plain(window, []):
+        return None
+    layout = _find_layout(window)
+    if layout is None or _layout_is_plain(layout):
+        first = content[0][1]
+        if not (first.startswith("[") or re.match(r"^\w+\s*=\s*\[", first)):
+            return None
+        return _matlab_rows(content if whole else content_lines(enumerate(lines), len(lines)))
+    if not whole:  # the separator and width found, every line is classified with them
+        content = content_lines(enumerate(lines), len(lines))
+        sample = layout
+        layout = _Layout(sample.sep, sample.decimal_comma, sample.width,
+                         [_classify_line(line, sample.sep, sample.decimal_comma)
+                          for _, line in content], content)
+        layout.start = next(k for k, c in enumerate(layout.classes)
+                            if c[0] == "num" and len(c[1]) == sample.width)
+        layout.run = max(sample.run, _MAX_ROWS_AS_DATA + 1)
+    notes = []
+    if comment_chars:
+        notes.append("comment lines starting with " + " or ".join(sorted(comment_chars))
+                     + " skipped")
+    if layout.run <= _MAX_ROWS_AS_DATA and layout.width >= _MIN_VALUES_IN_A_ROW:
+        return _rows_as_columns(layout, notes)
+    return _tidy_columns(name, layout, notes)
+
+
+_KNOWN_UNITS = set(_SECONDS_PER_UNIT) | {
+    "m", "mm", "cm", "km", "um", "v", "mv", "uv", "a", "ma", "rad", "mrad", "deg", "°", "n",
+    "mn", "g", "kg", "hz", "m/s", "m/s^2", "m/s²", "cm/s", "mm/s", "rad/s", "deg/s", "°/s",
+    "counts", "pa", "kpa", "%"}
+
+
+def _is_units_row(fields, width):
+    tokens = [f.strip("()[] ") for f in fields if f]
+    return (len(fields) <= width and len(tokens) >= max(1, width - 1)
+            and all(_UNIT_TOKEN.match(f) and len(f) <= 10 for f in tokens)
+            and any(f.lower().replace("µ", "u").replace("μ", "u") in _KNOWN_UNITS
+                    for f in tokens))
+
+
+_INTEGER_COMMA_INTEGER = re.compile(r"^[+-]?\d+,(\d+)$")
+
+
+def _zero_padded_fractions(content):
+    """Whether lines such as '38,0169' are one number with a decimal comma: every line is
+    two integers around one comma and some second integer has a leading zero, which no
+    program writes for an integer."""
+    matches = [_INTEGER_COMMA_INTEGER.match(line) for _, line in content]
+    numbered = [m for m in matches if m]
+    return (len(numbered) >= 0.9 * len(matches) and len(numbered) >= 3
+            and any(len(m.group(1)) > 1 and m.group(1)[0] == "0" for m in numbered))
+
+
+def _surely_plain(content, tail_content):
+    """A quick look for the usual file, to spare it the search for a layout: one header
+    line at most, as wide as the numeric lines below it (first lines and last lines)."""
+    if len(content) <= _MAX_ROWS_AS_DATA:
+        return False
+    sep, decimal = _sniff_separator([line for _, line in content[:50]])
+    decimal_comma = decimal == ","
+    widths = set()
+    for _, line in content[1:200] + content[-20:] + tail_content:
+        kind, fields = _classify_line(line, sep, decimal_comma)
+        if kind != "num":
+            return False
+        widths.add(len(fields))
+    if len(widths) != 1:
+        return False
+    width = widths.pop()
+    if sep == "," and width == 2 and _zero_padded_fractions(content[:200]):
+        return False
+    kind, fields = _classify_line(content[0][1], sep, decimal_comma)
+    if kind == "rule" or (kind == "text" and len(_header_fields(content[0][1], sep, width))
+                          != width):
+        return False
+    return not any(_FORTRAN_EXPONENT.match(f) or _CLOCK.match(f) or _ISO_DATE_TIME.match(f)
+                   for _, line in content[1:50] for f in _line_fields(line, sep))
+
+
+def _header_fields(line, sep, width):
+    """A header line split as the plain reader would, trailing empty fields dropped."""
+    fields = _header_names(line, sep, []) if sep is None else _split(line, sep)
+    while len(fields) > width and not fields[-1]:
+        fields.pop()
+    if sep is None and len(fields) == width + 1:
+        # "date time angle" over "2024-03-01 16:04:31 12.5": the date and time are one field.
+        lower = [f.lower() for f in fields]
+        for k in range(len(fields) - 1):
+            if (lower[k], lower[k + 1]) == ("date", "time"):
+                fields[k:k + 2] = [fields[k] + " " + fields[k + 1]]
+                break
+    if width == 1 and len(fields) > 1 and sep is None:
+        fields = [" ".join(fields)]
+    return fields
+
+
+def _header_rows(layout):
+    """(names, units, header rows, text lines above them): the header is the text lines
+    just above the data that are as wide as the data; a units row may close it."""
+    above = [layout.content[i][1] for i in range(layout.start)
+             if layout.classes[i][0] == "text"]
+    width = layout.width
+    rows = []
+    for line in reversed(above):
+        fields = _header_fields(line, layout.sep, width)
+        # A header may name a last column that every data row leaves empty (LabVIEW's
+        # Comment): the stripped data lines lost those trailing separators.
+        wanted = len(rows[0]) if rows else width
+        if len(fields) != wanted and not (not rows and width < len(fields) <= width + 2):
+            break
+        rows.insert(0, fields)
+    header_rows = list(rows)
+    units = None
+    if len(rows) >= 2 and _is_units_row(rows[-1], width):
+        units = rows.pop()
+    names = None
+    if rows:
+        timed = [r for r in rows if any(_is_time_name(f) for f in r)]
+        names = list(timed[0] if timed else rows[-1])
+    return names, units, header_rows, above[:len(above) - len(header_rows)]
+
+
+def _tidy_columns(name, layout, notes):
+    width = layout.width
+    names, units, header_rows, block = _header_rows(layout)
+    if block:
+        notes.append(f"{_count(len(block), 'line')} above the column names skipped (a "
+                     f"header block starting '{block[0][:40]}')")
+    if names is not None:
+        names = [(n or "").strip() for n in names][:width]
+        names += [""] * (width - len(names))
+        if units is not None:
+            unit_list = list(units) + [""] * (width - len(units))
+            names = [f"{n} ({u.strip('()[]')})" if u and _base_name(n)[1] is None and n
+                     else n for n, u in zip(names, unit_list)]
+            notes.append("units row under the header read: " + ", ".join(
+                u for u in units if u))
+    rows, rules, repeats, trailing = [], 0, 0, []
+    classes = layout.classes
+    last_num = max(i for i, c in enumerate(classes) if c[0] == "num")
+    for i in range(layout.start, len(classes)):
+        kind, fields = classes[i]
+        if kind == "rule":
+            rules += 1
+            continue
+        if kind == "text" and (_header_fields(layout.content[i][1], layout.sep,
+                                              len(header_rows[0]) if header_rows else width)
+                               in header_rows):
+            repeats += 1
+            continue
+        if i > last_num and _is_note(classes[i], layout):
+            trailing.append(layout.content[i][1])
+            continue
+        rows.append(fields)
+    rules += sum(1 for c in classes[:layout.start] if c[0] == "rule")
+    if rules:
+        notes.append(f"{_count(rules, 'separator line')} (dashes or equals signs) skipped")
+    if repeats:
+        notes.append(f"{_count(repeats, 'repeated header line')} skipped")
+    if trailing:
+        notes.append(f"{_count(len(trailing), 'line')} of text after the data skipped "
+                     f"(starting '{trailing[0][:40]}')")
+    if layout.decimal_comma and any("," in f for r in rows[:200] for f in r):
         notes.append("decimal commas read as decimal points")
+    if any(_FORTRAN_EXPONENT.match(f) for r in rows[:200] for f in r):
+        notes.append("Fortran D exponents (1.0D-03) read as E exponents")
+    columns = [[(r[k] if k < len(r) else "") for r in rows] for k in range(width)]
+    clock = []
+    for k, column in enumerate(columns):
+        if any(_CLOCK.match(v) or _ISO_DATE_TIME.match(v) for v in column[:50]):
+            seconds, first = _clock_seconds(column)
+            if seconds is not None:
+                columns[k] = seconds
+                clock.append(k)
+                label = (names[k] if names and names[k] else f"column {k + 1}")
+                notes.append(f"clock times in '{label}' read as seconds after the first "
+                             f"({first})")
+                if names is not None and _base_name(names[k])[1] is None:
+                    names[k] = f"{names[k] or 'clock'} (s)"
+                continue
+        columns[k] = [_normal_number(v, layout.decimal_comma) for v in column]
+    out = []
+    if names is not None:
+        out.append("\t".join(n.replace("\t", " ") or f"column {k + 1}"
+                             for k, n in enumerate(names)))
+    out.extend("\t".join(values) for values in zip(*columns))
+    return "\n".join(out) + "\n", notes, clock, False, names is not None
 
-    def reader(indices, nrows=None, as_text=False):
-        if as_text:
-            return text.iloc[:, list(indices)]
-        return numeric.iloc[:, list(indices)]
 
-    return _Table(name, names, numeric, reader, notes)
+def _count(n, noun):
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
+def _normal_number(token, decimal_comma):
+    if decimal_comma:
+        token = token.replace(",", ".")
+    if "d" in token or "D" in token:
+        token = token.replace("d", "e").replace("D", "E")
+    return token
+
+
+def _clock_seconds(column):
+    """(seconds as text, first clock time) for clock times or ISO date-times, or (None, None)
+    when some value is neither; empty cells stay empty. A time of day that steps back by
+    more than twelve hours has passed midnight."""
+    from datetime import datetime, timezone
+    values = []
+    for v in column:
+        v = v.strip()
+        if not v:
+            values.append(None)
+            continue
+        if _ISO_DATE_TIME.match(v):
+            try:
+                stamp = datetime.fromisoformat(v.replace(",", ".").replace("Z", "+00:00"))
+            except ValueError:
+                return None, None
+            if stamp.tzinfo is not None:
+                stamp = stamp.astimezone(timezone.utc).replace(tzinfo=None)
+            values.append(stamp)
+            continue
+        if not _CLOCK.match(v):
+            return None, None
+        parts = v.replace(",", ".").split(":")
+        seconds = float(parts[-1]) + 60 * int(parts[-2])
+        if len(parts) == 3:
+            seconds += 3600 * int(parts[0])
+        values.append(("day", seconds))
+    first_index = next((i for i, v in enumerate(values) if v is not None), None)
+    if first_index is None:
+        return None, None
+    out, day, previous, origin = [], 0.0, None, None
+    for v in values:
+        if v is None:
+            out.append("")
+            continue
+        if isinstance(v, tuple):
+            v = v[1]
+            if previous is not None and v + day < previous - 43200:
+                day += 86400.0
+            v = v + day
+        elif isinstance(v, datetime):
+            # Seconds from the first date-time, exactly (epoch seconds would lose the
+            # microseconds to rounding).
+            if origin is None:
+                origin = v
+            if not isinstance(origin, datetime):
+                return None, None
+            v = (v - origin).total_seconds()
+            out.append(repr(round(v, 9)))
+            continue
+        if origin is None:
+            origin = v
+        if isinstance(origin, datetime):
+            return None, None
+        previous = v
+        out.append(repr(round(v - origin, 9)))
+    return out, column[first_index].strip()
+
+
+def _rows_as_columns(layout, notes):
+    rows = [fields for kind, fields in layout.classes if kind == "num"]
+    labelled = [c[1] for c in layout.classes if c[0] == "text"
+                and len(c[1]) == layout.width + 1 and all(
+                    _token_kind(f, layout.decimal_comma) != "text" for f in c[1][1:])]
+    names = None
+    if labelled and not rows:
+        names = [r[0] for r in labelled]
+        rows = [r[1:] for r in labelled]
+    notes.append(f"data written in rows ({len(rows)} rows of {layout.width} values) read as "
+                 "columns")
+    if layout.decimal_comma:
+        notes.append("decimal commas read as decimal points")
+    columns = [[_normal_number(v, layout.decimal_comma) for v in r] for r in rows]
+    out = ["\t".join(names)] if names else []
+    out.extend("\t".join(values) for values in zip(*columns))
+    return "\n".join(out) + "\n", notes, [], True, names is not None
+
+
+def _matlab_rows(content):
+    """A MATLAB matrix literal ``[t; x]`` (or ``name = [...]``) written as rows, or None."""
+    text = " ".join(line for _, line in content)
+    match = re.match(r"^(\w+\s*=\s*)?\[(.*)\]\s*;?$", text)
+    if not match:
+        return None
+    rows = [r.replace(",", " ").split() for r in match.group(2).split(";") if r.strip()]
+    if not rows or len(rows) > _MAX_ROWS_AS_DATA or any(len(r) != len(rows[0]) for r in rows):
+        return None
+    if not all(_NUMBER_TOKEN.match(v) or v.lower() in _SPECIAL_TOKENS for r in rows for v in r):
+        return None
+    if len(rows[0]) < len(rows):
+        rows = [list(c) for c in zip(*rows)]
+        note = "MATLAB matrix read"
+    else:
+        note = (f"data written in rows ({len(rows)} rows of {len(rows[0])} values, a MATLAB "
+                "matrix) read as columns")
+    columns = [[_normal_number(v, False) for v in r] for r in rows]
+    return ("\n".join("\t".join(v) for v in zip(*columns)) + "\n", [note], [], True, False)
 
 
 # --------------------------------------------------------------------------- choosing
 
 
+_INNER_UNIT = re.compile(r"^(.*?)\s*[\(\[]\s*([^\)\]]*?)\s*[\)\]]\s*(.*)$")
+
+
 def _base_name(label):
-    """'Time (s)' -> ('time', 's'); 'angle' -> ('angle', None)."""
+    """'Time (s)' -> ('time', 's'); 'angle' -> ('angle', None);
+    'Position (mm) Run #1' -> ('position run #1', 'mm')."""
     match = _UNIT.match(label.strip())
     if match and match.group(1):
         return match.group(1).strip().lower(), match.group(2).strip() or None
+    match = _INNER_UNIT.match(label.strip())
+    if match and match.group(1) and match.group(2).lower() in _KNOWN_UNITS:
+        return (f"{match.group(1)} {match.group(3)}".strip().lower(),
+                match.group(2).strip())
     return label.strip().lower(), None
+
+
+_RUN_SUFFIX = re.compile(r"\s*\brun\s*#?\s*\d+$")
+
+
+def _is_time_name(label):
+    """Whether a column label names the time ('Time (s)', 'Time (s) Run #1', 'X_Value')."""
+    base = _base_name(label)[0]
+    return base in _TIME_NAMES or _RUN_SUFFIX.sub("", base) in _TIME_NAMES
 
 
 def _resolve_column(table, spec, role):
@@ -643,7 +1333,9 @@ def _oscillation_score(values):
 
 def _choose_time(table, rate):
     sample = table.sample
-    named = [i for i, n in enumerate(table.names) if _base_name(n)[0] in _TIME_NAMES]
+    named = [i for i, n in enumerate(table.names) if _is_time_name(n)]
+    # Elapsed seconds are the better time when the file also holds clock times.
+    named = [i for i in named if i not in table.clock] + [i for i in named if i in table.clock]
     cycle_named = [i for i, n in enumerate(table.names) if _base_name(n)[0] in _CYCLE_NAMES]
     increasing = [i for i in range(sample.shape[1]) if _strictly_increasing(sample[i].values)]
     # Logger timestamps that repeat: a time column, but an unusable one.
@@ -671,7 +1363,7 @@ def _choose_time(table, rate):
 def _choose_signal(table, time_index, ignored):
     sample = table.sample
     candidates = [i for i in range(sample.shape[1])
-                  if i != time_index and i not in ignored
+                  if i != time_index and i not in ignored and i not in table.clock
                   and np.count_nonzero(np.isfinite(sample[i].values)) >= 2
                   and np.ptp(sample[i].values[np.isfinite(sample[i].values)]) > 0]
     if not candidates:  # only constant columns: say so when they are read
@@ -731,19 +1423,44 @@ def _read_columns(table, indices):
                              "that every row has the same number of columns.") from None
         for position, index in enumerate(indices):
             values = text.iloc[:, position].astype(str).str.strip()
-            converted = pd.to_numeric(values.str.replace(",", ".", regex=False)
-                                      .replace("", np.nan), errors="coerce")
+            if table.decimal == ",":
+                values_read = values.str.replace(",", ".", regex=False)
+            else:
+                values_read = values
+            converted = pd.to_numeric(values_read.replace("", np.nan), errors="coerce")
             bad = converted.isna() & values.ne("") & ~values.str.lower().isin(
                 ["nan", "na", "n/a", "null", "none", "-nan", "inf", "-inf"])
+            clockish = values.map(lambda v: bool(isinstance(v, str) and (
+                _CLOCK.match(v) or _ISO_DATE_TIME.match(v))))
+            if bad.any() and clockish.mean() > 0.5:
+                # Clock times that did not all convert: name the odd one out.
+                odd = bad & ~clockish
+                row = int(np.flatnonzero((odd if odd.any() else bad).values)[0])
+                first = str(values[clockish].iloc[0])
+                raise InputError(
+                    f"'{_shown(values.iloc[row])}' in the clock-time column {_describe(table, index)} "
+                    f"of {table.name} (data row {row + 1}) is not a clock time like the "
+                    f"others ('{first}'). Fix or delete that row, or choose another time "
+                    "column with --time-col or give --rate HZ.") from None
             if bad.any():
                 row = int(np.flatnonzero(bad.values)[0])
                 raise InputError(
-                    f"text '{values.iloc[row]}' in numeric column {_describe(table, index)} of "
+                    f"text '{_shown(values.iloc[row])}' in numeric column {_describe(table, index)} of "
                     f"{table.name} (data row {row + 1}). Fix or delete that row, or start it "
                     "with # to make it a comment.") from None
-        raise
+        columns = ", ".join(_describe(table, index) for index in indices)
+        raise InputError(f"cannot read the columns {columns} of {table.name} as numbers "
+                         f"({str(exc).splitlines()[0]}). Check that every row has the same "
+                         "number of columns.") from None
     return [frame.iloc[:, position].to_numpy(dtype=np.float64, copy=False)
             for position in range(len(indices))]
+
+
+def _shown(value):
+    """A cell's text for a one-line message: a quoted field may span lines."""
+    text = str(value)
+    text = text.replace("\r\n", "\n").replace("\r", "\n").replace("\n", "\\n")
+    return text if len(text) <= 60 else text[:57] + "..."
 
 
 def _timestamp_problem(t):
@@ -766,6 +1483,207 @@ def _timestamp_problem(t):
     return None
 
 
+# Glitched timestamps (repeated or stepping back) repaired when at most this fraction of the
+# steps is wrong; more means the column is not a clean clock, and a person must decide.
+_MAX_GLITCH_FRACTION = 0.01
+
+
+def _repair_times(table, time_index, t, x, notes):
+    """(t, x, event_driven) with rounded, event-driven or glitched timestamps dealt with.
+
+    A time column rounded in print (Tracker's 3 significant figures) is rebuilt as the
+    evenly spaced times it rounds; an event-driven log (a row each time the signal moves
+    by one step) keeps its uneven times; a few repeated or backward timestamps are set to
+    the middle of their neighbours, or dropped. Each repair adds a note.
+    """
+    steps = np.diff(t)
+    if steps.size < 3 or (np.all(steps > 0) and _timestamp_problem(t) is None):
+        return t, x, False
+    label = _describe(table, time_index)
+    rebuilt = _unrounded_times(table, time_index, t)
+    if rebuilt is not None:
+        t, model = rebuilt
+        step = float(np.median(np.diff(t)))
+        notes.append(f"time column {label} is rounded ({model}); times rebuilt as evenly "
+                     f"spaced, step {step:.6g} s ({1 / step:.6g} Hz)")
+        return t, x, False
+    event_step = _event_step(x)
+    if event_step is not None:
+        same = np.flatnonzero(np.diff(t) == 0)
+        if same.size and np.all(np.diff(t) >= 0):
+            keep = np.ones(t.size, dtype=bool)
+            keep[same] = False  # of rows sharing a timestamp, the last is the state then
+            t, x = t[keep], x[keep]
+            notes.append(f"{same.size} rows sharing their timestamp with the next row "
+                         "dropped (the last row of each time kept)")
+        notes.append(f"an event-driven log (a row each time the signal moves by "
+                     f"{event_step:g}): its uneven time steps are real and kept")
+        return t, x, True
+    steps = np.diff(t)
+    if np.all(steps > 0):
+        return t, x, False
+    repaired = _mend_glitches(t)
+    if repaired is None:
+        return t, x, False
+    t_new, keep, fixed, first = repaired
+    bad = fixed + int(np.count_nonzero(~keep))
+    what = []
+    if fixed:
+        what.append(f"{fixed} set to the middle of their neighbours")
+    if not keep.all():
+        what.append(f"{int(np.count_nonzero(~keep))} rows dropped")
+    notes.append(f"{bad} glitched timestamps (repeated or stepping back) in {label}, the "
+                 f"first at data row {first + 1}: " + ", ".join(what))
+    return t_new[keep], x[keep], False
+
+
+def _mend_glitches(t):
+    """(times, rows kept, number set right, first glitch) for a few glitched timestamps,
+    or None when there are too many or they cannot be told from the rest.
+
+    A glitch is a time off the local run of the clock: t_i - i*step against its running
+    median over five rows differs by more than half a step. A glitch between two good
+    rows is set to their middle; other glitches, and rows that still do not increase
+    (kept by the longest increasing run), are dropped.
+    """
+    steps = np.diff(t)
+    step = float(np.median(steps))
+    if not step > 0:
+        return None
+    limit = _MAX_GLITCH_FRACTION * steps.size
+    drift = t - step * np.arange(t.size)
+    window = np.lib.stride_tricks.sliding_window_view(np.pad(drift, 2, mode="edge"), 5)
+    glitch = np.abs(drift - np.median(window, axis=1)) > 0.5 * step
+    if not glitch.any() or np.count_nonzero(glitch) > limit:
+        glitch = np.zeros(t.size, dtype=bool)
+    t = t.copy()
+    keep = ~glitch
+    fixed = 0
+    for i in np.flatnonzero(glitch):
+        if 0 < i < t.size - 1 and not glitch[i - 1] and not glitch[i + 1] and (
+                t[i - 1] < t[i + 1]):
+            t[i] = 0.5 * (t[i - 1] + t[i + 1])
+            keep[i] = True
+            fixed += 1
+    order = np.flatnonzero(keep)
+    increasing = order[_longest_increasing(t[order])]
+    if fixed + t.size - increasing.size > limit:
+        return None
+    keep = np.zeros(t.size, dtype=bool)
+    keep[increasing] = True
+    bad = glitch | ~keep
+    return t, keep, fixed, int(np.flatnonzero(bad)[0])
+
+
+def _longest_increasing(t):
+    """Indices of a longest strictly increasing subsequence of ``t`` (patience sorting)."""
+    import bisect
+    tails, tail_index = [], []
+    previous = np.full(t.size, -1, dtype=np.intp)
+    for i, value in enumerate(t.tolist()):
+        k = bisect.bisect_left(tails, value)
+        if k == len(tails):
+            tails.append(value)
+            tail_index.append(i)
+        else:
+            tails[k] = value
+            tail_index[k] = i
+        previous[i] = tail_index[k - 1] if k else -1
+    out = []
+    i = tail_index[-1] if tail_index else -1
+    while i >= 0:
+        out.append(i)
+        i = previous[i]
+    return np.array(out[::-1], dtype=np.intp)
+
+
+def _event_step(x):
+    """The step of an event-driven log (nearly every row moves the signal by one step),
+    else None."""
+    finite = x[np.isfinite(x)]
+    if finite.size < 20:
+        return None
+    moves = np.abs(np.diff(finite))
+    moving = moves[moves > 0]
+    if moving.size < 0.9 * moves.size:
+        return None
+    step = moving.min()
+    if np.count_nonzero(np.abs(moving - step) <= 1e-9 * max(step, 1e-300)) < 0.9 * moves.size:
+        return None
+    return float(step)
+
+
+_DECIMAL_TOKEN = re.compile(r"^[+-]?(\d*)(?:\.(\d*))?(?:[eE]([+-]?\d+))?$")
+
+
+def _print_resolutions(tokens):
+    """Ways the times may have been printed, as (description, value -> resolution): to a
+    fixed number of decimals, or of significant figures (Tracker's default). Tokens with
+    fewer digits (trailing zeros left out) are exact at the finer resolution too."""
+    decimals, figures = 0, 0
+    for token in tokens:
+        match = _DECIMAL_TOKEN.match(token.strip())
+        if not match or not (match.group(1) or match.group(2)) or match.group(3) is not None:
+            return []
+        whole, fraction = match.group(1), match.group(2) or ""
+        decimals = max(decimals, len(fraction))
+        figures = max(figures, len((whole + fraction).lstrip("0")))
+    if figures == 0 or decimals > 12:
+        return []
+
+    def fixed(v):
+        return np.full(v.shape, 10.0 ** -decimals)
+
+    def significant(v):
+        magnitude = np.floor(np.log10(np.maximum(np.abs(v), 1e-300)))
+        return 10.0 ** (magnitude - figures + 1)
+    return [(f"to {decimals} decimals", fixed), (f"to {figures} significant figures",
+                                                 significant)]
+
+
+def _unrounded_times(table, time_index, t):
+    """(evenly spaced times, how they were rounded) when ``t`` is an evenly sampled time
+    rounded in print, else None. The line a + b*i is the one that stays closest to every
+    time in units of its rounding (a linear programme); rounding explains the times when
+    no time is further from it than half its last printed digit."""
+    tokens = []
+    for line in table.token_lines[:2000]:
+        fields = _split(line.strip(), table.sep) if line.strip() else []
+        if len(fields) > time_index and fields[time_index]:
+            tokens.append(fields[time_index])
+    if len(tokens) < 20 or t.size < 20 or not np.all(np.isfinite(t)):
+        return None
+    # Samples in equal groups per timestamp (2, 2, 2...) fit a rounded clock as well as
+    # bursts; with a fixed number of decimals they are taken for bursts, as the logger's
+    # own stamps. Rounding to significant figures changes the group size with the time.
+    _, groups = np.unique(t, return_counts=True)
+    regular = bool(np.all(groups[1:-1] == groups[1])) if groups.size > 2 else True
+    for how, resolution in _print_resolutions(tokens):
+        if regular and "decimals" in how:
+            continue
+        line = _line_within(t, 0.5 * resolution(t))
+        if line is not None:
+            return line, how
+    return None
+
+
+def _line_within(t, half):
+    """a + b*i, shape (n,), within ``half`` of every ``t`` with b > 0, or None."""
+    from scipy.optimize import linprog
+    i = np.arange(t.size, dtype=np.float64)
+    # minimise s subject to |a + b*i - t| <= s*half  (variables a, b, s)
+    ones = np.ones(t.size)
+    a_ub = np.block([[ones[:, None], i[:, None], -half[:, None]],
+                     [-ones[:, None], -i[:, None], -half[:, None]]])
+    b_ub = np.concatenate([t, -t])
+    result = linprog([0.0, 0.0, 1.0], A_ub=a_ub, b_ub=b_ub,
+                     bounds=[(None, None), (None, None), (0, None)], method="highs")
+    if not result.success or result.x[2] > 1.0 + 1e-6 or result.x[1] <= 0:
+        return None
+    a, b = result.x[0], result.x[1]
+    return a + b * i
+
+
 def _build_record(table, time_col, signal_col, rate, kind, domain):
     name = table.name
     notes = list(table.notes)
@@ -778,8 +1696,9 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
         raise InputError(f"{name} has only {numeric_rows} data row. A decay record needs "
                          "many samples over several cycles.")
     if len(table.names) == 1 and time_col is None and rate is None and signal_col is None:
-        raise InputError(f"{name} has one column, {_describe(table, 0)}, and no time column. "
-                         "Give the sample rate with --rate HZ, or add a time column.")
+        rows = " (its values written in one row)" if table.transposed else ""
+        raise InputError(f"{name} has one column{rows}, {_describe(table, 0)}, and no time "
+                         "column. Give the sample rate with --rate HZ, or add a time column.")
     ignored = []
     if time_col is not None:
         time_index = _resolve_column(table, time_col, "time")
@@ -876,6 +1795,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
             t, x = t[order], x[order]
             notes.append("turning points sorted by time")
     else:
+        t, x, event_driven = _repair_times(table, time_index, t, x, notes)
         steps = np.diff(t)
         if not np.all(steps > 0):
             problem = _timestamp_problem(t)
@@ -887,7 +1807,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
                              f"not increase (data row {where + 1}: {t[where - 1]:g} then "
                              f"{t[where]:g}). Sort the file, choose another column with "
                              "--time-col, or use --rate HZ.")
-        problem = _timestamp_problem(t)
+        problem = None if event_driven else _timestamp_problem(t)
         if problem:
             notes.append(f"irregular timestamps: {problem}; if the logger stamps samples in "
                          "bursts, use --rate HZ")
@@ -923,6 +1843,8 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
         elif seconds != 1.0:
             t = t * seconds
             notes.append(f"time converted from {time_unit} to seconds")
+            time_unit = "s"
+        else:  # "seconds", "sec": the report speaks of seconds as "s"
             time_unit = "s"
 
     t = np.ascontiguousarray(t, dtype=np.float64)
