@@ -123,7 +123,7 @@ def test_q_interval_covers_the_truth_through_the_whole_chain(q_true, cycles):
         if q is None:
             continue
         total += 1
-        covered += abs(q["initial"] - q_true) < 1.96 * q["initial_stderr"]
+        covered += abs(q["initial"] - q_true) < result.interval_factor * q["initial_stderr"]
     assert total >= 115
     assert 0.90 <= covered / total <= 0.98, covered / total
 

@@ -1,5 +1,6 @@
 """The verdicts section of ``mcfit bench``: how often the reported model is the true one,
-and how often the 95 % intervals of a, b, c and Q cover the truth, by Monte Carlo.
+and how often the 95 % intervals of a, b, c and Q (value +- ``DecayFit.interval_factor``
+standard errors, the band of the report figure) cover the truth, by Monte Carlo.
 
 Two kinds of scene. Amplitude scenes draw turning points from the law itself with Gaussian
 noise, so the selection is measured alone. Waveform scenes simulate the averaged waveform
@@ -92,8 +93,8 @@ def _fit(scene, rng):
     return fit_decay(t, y + rng.normal(0.0, scene.noise, t.size), sigma, period=scene.period)
 
 
-def _covers(value, error, true):
-    return error is not None and abs(value - true) <= 1.96 * error
+def _covers(value, error, true, factor):
+    return error is not None and abs(value - true) <= factor * error
 
 
 def _true_q_initial(scene, fit):
@@ -122,11 +123,12 @@ def run_verdicts(records=100, seed=2026, scenes=VERDICT_SCENES, progress=None) -
             counts["missed"] += any(truth[k] and k not in kept for k in "abc")
             counts["unresolved"] += not fit.resolved
             for k in "abc":
-                covered[k] += _covers(fit.values[k], fit.stderr[k], truth[k])
+                covered[k] += _covers(fit.values[k], fit.stderr[k], truth[k],
+                                      fit.interval_factor)
             q = fit.q_summary
             if q is not None:
                 covered["Q"] += _covers(q["initial"], q["initial_stderr"],
-                                        _true_q_initial(scene, fit))
+                                        _true_q_initial(scene, fit), fit.interval_factor)
         seconds = (time.perf_counter() - start) / records
         coverage = {k: covered[k] / records if truth[k] else None for k in "abc"}
         coverage["Q"] = covered["Q"] / records if scene.model != "none" else None

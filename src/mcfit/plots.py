@@ -175,7 +175,8 @@ def _draw_q(axes, view, fit):
         return
     axes.plot(fit.t, fit.q, color="k", lw=1.6, label="Q total")
     if getattr(fit, "q_stderr", None) is not None:
-        axes.fill_between(fit.t, fit.q - 1.96 * fit.q_stderr, fit.q + 1.96 * fit.q_stderr,
+        half = fit.interval_factor * fit.q_stderr
+        axes.fill_between(fit.t, fit.q - half, fit.q + half,
                           color="0.6", alpha=0.4, label="95 % band")
     if getattr(fit, "q_parts", None) is not None:
         for key, color in (("fluid", "tab:orange"), ("hysteretic", "tab:green"),

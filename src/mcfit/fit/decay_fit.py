@@ -73,6 +73,12 @@ class DecayFit:
         return self.selection.resolved
 
     @property
+    def interval_factor(self) -> float:
+        """Half-width of a 95 % interval in standard errors: Student's t with the fit's
+        degrees of freedom (the noise scale is estimated from the residuals)."""
+        return uncertainty.interval_factor(self.n_points - 1 - len(self.selection.terms))
+
+    @property
     def forced(self) -> bool:
         return self.selection.forced
 

@@ -14,7 +14,7 @@ from mcfit import decay
 from mcfit.fit.problem import PARAMETERS, Problem
 
 __all__ = ["ParameterErrors", "parameter_errors", "q_with_stderr", "summarise_q",
-           "q_lower_bound", "bootstrap_intervals"]
+           "q_lower_bound", "bootstrap_intervals", "interval_factor"]
 
 _COLUMN = {name: i for i, name in enumerate(PARAMETERS)}
 
@@ -43,6 +43,13 @@ def parameter_errors(scaled, free, covariance) -> ParameterErrors:
                    for (i, ki), (j, kj) in itertools.combinations(enumerate(free), 2)
                    if errors[i] > 0 and errors[j] > 0}
     return ParameterErrors(stderr, correlation, physical)
+
+
+def interval_factor(dof, confidence=0.95):
+    """Half-width of a two-sided interval in standard errors estimated with ``dof``
+    degrees of freedom (Student's t; the normal quantile when dof is unknown)."""
+    tail = 0.5 + 0.5 * confidence
+    return float(special.stdtrit(dof, tail)) if dof > 0 else float(special.ndtri(tail))
 
 
 def q_with_stderr(t, values, covariance, free, omega, omega_relative_sigma=0.0):
