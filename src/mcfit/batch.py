@@ -42,6 +42,7 @@ class FitOptions:
     model: str | None = None
     bootstrap: int = 0
     seed: int | None = None
+    method: str = "auto"
     output_format: str = "text"
 
 
@@ -133,7 +134,8 @@ def _job_for(source, options, plot_path):
                              domain=options.domain)
         analysis = analyse_record(record, criterion=options.criterion, model=options.model,
                                   bootstrap=options.bootstrap,
-                                  rng=np.random.default_rng(options.seed))
+                                  rng=np.random.default_rng(options.seed),
+                                  method=options.method)
     except McfitError as error:
         analysis = failed_analysis(_display_name(source), " ".join(str(error).split()),
                                    record=record)

@@ -303,6 +303,11 @@ def _column(value):
                    "each chooses the model anew.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the bootstrap resampling.")
+@click.option("--method", type=click.Choice(["auto", "turning-points", "waveform"]),
+              default="auto", show_default=True,
+              help="Fit the turning points by the averaged law, or the waveform by the "
+                   "equation of motion; auto takes the waveform only where the averaged "
+                   "law's bias would exceed 0.3 standard errors (low Q).")
 @click.option("--format", "output_format", type=click.Choice(["text", "json", "csv"]),
               default="text", show_default=True, help="Output format.")
 @click.option("-o", "--output", type=click.Path(allow_dash=True), default="-",
@@ -314,7 +319,7 @@ def _column(value):
 @click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Worker processes; results stay in input order.")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
-        bootstrap, seed, output_format, output, plot_file, plot_dir, jobs):
+        bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs):
     if jobs > 1:
         # Each worker fits small problems: BLAS threads would only compete for the cores.
         # Set before numpy is first imported (here and in the workers); user settings win.
@@ -333,7 +338,7 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     options = dict(time_col=_column(time_col), signal_col=_column(signal_col),
                    sheet=_column(sheet), rate=rate, input=input_kind, domain=domain,
                    criterion=criterion, model=model,
-                   bootstrap=bootstrap, seed=seed)
+                   bootstrap=bootstrap, seed=seed, method=method)
     with _stop_signals_interrupt():
         try:
             failures = _fit_files(files, output, output_format, plot_file, plot_dir, jobs,

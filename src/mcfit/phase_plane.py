@@ -13,8 +13,8 @@ half-cycle the solution is analytic in phi: it is found by Chebyshev collocation
 method on the integrated equations at ``NODES`` Chebyshev-Lobatto points), evaluated on
 ``FINE`` points of the half-cycle, and x(t) between those is a cubic Hermite interpolant of
 phi(t) and A(t), whose derivatives the equations give. At a
-turning point from which the swing cannot reach the other side (:func:`_stuck`) the mass is
-held there for good: the last half-swing of a Coulomb stop is left out.
+turning point from which the swing may not reach the other side of 0 (:func:`_stuck`) the
+last swings are integrated in x and xdot (:func:`_with_final_swing`).
 
 Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md section 1.
 Every function takes arrays of parameter sets (shape (m,)) and integrates them together,
@@ -27,7 +27,7 @@ import math
 
 import numpy as np
 
-__all__ = ["NODES", "FINE", "phase_plane_motion", "motion_turning_points"]
+__all__ = ["NODES", "FINE", "phase_plane_motion"]
 
 # Collocation points and interpolation points per half-cycle: x is within 1e-9 of the
 # amplitude for Q >= 2 (tests/test_phase_plane.py, against the accurate integrator).
@@ -60,7 +60,7 @@ def _rates(amplitude, phi, omega, a, b, c):
     safe = np.maximum(amplitude, 1e-100)
     friction = c + safe * (b + a * safe)
     cos, sin = np.cos(phi), np.sin(phi)
-    denominator = np.maximum(omega - _HALF_PI * friction / safe * cos, 1e-300 * omega)
+    denominator = np.maximum(omega - _HALF_PI * friction / safe * cos, 1e-9 * omega)
     slope = -_HALF_PI * friction * sin / denominator
     d_denominator = -_HALF_PI * (a - c / (safe * safe)) * cos
     d_slope = -_HALF_PI * sin * ((b + 2 * a * safe) - friction * d_denominator / denominator)
@@ -87,19 +87,12 @@ def phase_plane_motion(t, y0, theta0, omega, a, b, c):
     y0, theta0, omega, a, b, c = (np.array(v, dtype=float)[:, None] for v in
                                   np.broadcast_arrays(*(np.atleast_1d(np.asarray(
                                       v, dtype=float)) for v in (y0, theta0, omega, a, b, c))))
-    return _sampled(t, *_nodes(float(t[-1]), y0, theta0, omega, a, b, c))
-
-
-def motion_turning_points(t_end, y0, omega, a, b, c):
-    """Times (s) and amplitudes (U) of the turning points of Eq. 20.55 from a turning
-    point of amplitude ``y0`` at t = 0 up to ``t_end`` (scalars), the last where the mass
-    is held, if it is."""
-    columns = [np.array([[float(v)]]) for v in (y0, 0.0, omega, a, b, c)]
-    times, phases, amplitudes, _, _ = _nodes(float(t_end), *columns)
-    starts = np.flatnonzero(np.isclose(np.mod(phases[0], math.pi), 0.0, atol=1e-12)
-                            | np.isclose(np.mod(phases[0], math.pi), math.pi, atol=1e-12))
-    turning_t, index = np.unique(times[0, starts], return_index=True)
-    return turning_t, amplitudes[0, starts[index]]
+    # A trial parameter set of a solver may bring a swing to a standstill inside a
+    # half-cycle (D -> 0): its values are then huge but finite, and the solver steps back.
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        *nodes, final = _nodes(float(t[-1]), y0, theta0, omega, a, b, c)
+        x = _with_final_swing(t, _sampled(t, *nodes), final, (a, b, c), omega[:, 0])
+    return np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300)
 
 
 def _half_cycle(amplitude, now, phi, omega, a, b, c):
@@ -122,12 +115,11 @@ def _half_cycle(amplitude, now, phi, omega, a, b, c):
 
 
 def _stuck(amplitude, omega, a, b, c):
-    """At a turning point: the swing would not reach the other side of 0. Coulomb friction
-    alone stops a swing that starts below pi*c/omega short of crossing 0 (it ends at
-    pi*c/omega - A on the same side); the other terms stop it where the friction exceeds
-    the spring. The mass is then held where it is (the last half-swing of a Coulomb stop
-    is left out)."""
-    return omega * amplitude <= math.pi * c + _HALF_PI * amplitude * (b + a * amplitude)
+    """At a turning point: the swing may not reach the other side of 0. Under a friction
+    force held at its start value (pi*omega/2)*g(A) the mass swings about
+    x_c = (pi/(2*omega))*g(A) and ends at 2*x_c - A, beyond 0 only if A > 2*x_c. From
+    there on the motion is :func:`_with_final_swing`."""
+    return omega * amplitude <= math.pi * (c + amplitude * (b + a * amplitude))
 
 
 def _nodes(t_end, amplitude, theta0, omega, a, b, c):
@@ -139,9 +131,15 @@ def _nodes(t_end, amplitude, theta0, omega, a, b, c):
     phi = theta0 - base
     now = np.zeros_like(amplitude)
     held = np.zeros(amplitude.shape, dtype=bool)
+    final = np.full((amplitude.shape[0], 3), np.inf)  # start, amplitude, sign
     pieces = []
-    while True:
-        held = held | ((phi == 0.0) & _stuck(amplitude, omega, a, b, c))
+    # Friction at Q >= 1 speeds the phase by less than a factor 2: a bound on the loop.
+    for _ in range(int(2 * np.max(omega) * t_end / math.pi) + 4):
+        stuck = ~held & (phi == 0.0) & _stuck(amplitude, omega, a, b, c)
+        if np.any(stuck):
+            rows = stuck[:, 0]
+            final[rows] = np.column_stack([now, amplitude, np.cos(base)])[rows]
+        held = held | stuck
         free = [np.where(held, 0.0, k) for k in (a, b, c)]  # a held set needs no solution
         amplitudes, times, phases, length = _half_cycle(amplitude, now, phi, omega, *free)
         fine_a, fine_t = amplitudes @ _EVALUATE.T, times @ _EVALUATE.T
@@ -156,7 +154,24 @@ def _nodes(t_end, amplitude, theta0, omega, a, b, c):
         base = np.where(held, base, base + math.pi)
         phi = np.where(held, phi, 0.0)
         if np.all(held | (now >= t_end)):
-            return tuple(np.concatenate(v, axis=1) for v in zip(*pieces))
+            break
+    return tuple(np.concatenate(v, axis=1) for v in zip(*pieces)) + (final,)
+
+
+def _with_final_swing(t, x, final, coefficients, omega):
+    """The end of a decay that stops, from the turning point where :func:`_stuck` holds:
+    the last swings are short of crossing 0 and the friction changes much within them, so
+    they are integrated in x and xdot by :func:`mcfit.motion.integrate_accurate` (which
+    holds the mass where static friction wins)."""
+    from mcfit.motion import damping_terms, integrate_accurate  # noqa: PLC0415
+
+    for i, (start, amplitude, sign) in enumerate(final):
+        after = t >= start
+        if np.isfinite(start) and np.any(after):
+            terms = damping_terms(*(k[i, 0] for k in coefficients))
+            x[i, after] = integrate_accurate(sign * amplitude, 0.0, omega[i], terms,
+                                             t[after] - start).x
+    return x
 
 
 def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):

@@ -78,6 +78,8 @@ def to_json_dict(analysis: Analysis) -> dict:
         values, stderr, units = _params_in_time_units(analysis)
         out["model"] = fit.model
         power = fit.model == POWER
+        out["method"] = getattr(fit, "method", "turning-points")
+        out["method_reason"] = getattr(fit, "method_reason", None)
         out["resolved"] = True if power else fit.resolved
         out["regimes"] = dict.fromkeys(REGIME_NAMES.values(), False) if power else dict(fit.regimes)
         out["params"] = {k: {"value": _number(values[k]), "stderr": _number(stderr[k])}
@@ -254,6 +256,9 @@ def to_text(analysis: Analysis) -> str:
                       if drift is not None else "")
         lines.append(f"  period:          {data['period']:.6g} {'s' if fit.domain == 'time' else 'cycle'}"
                      f"{drift_text}")
+    if data.get("method_reason"):
+        lines.append(f"  method:          {data['method'].replace('-', ' ')} "
+                     f"({data['method_reason']})")
     lines += _regimes_lines(fit)
     params = data["params"]
     unit = data.get("params_units", "per second")

@@ -17,7 +17,7 @@ from mcfit.fit.power import PowerLawFit, fit_power_law
 from mcfit.fit.problem import PARAMETERS, ScaledRecord
 from mcfit.fit.selection import LRT_ALPHA, Selection, select_model
 
-__all__ = ["DecayFit", "fit_decay", "MIN_POINTS"]
+__all__ = ["DecayFit", "fit_decay", "MIN_POINTS", "tie_warning", "diagnose"]
 
 MIN_POINTS = 4
 # |correlation| above this between two kept parameters: the record hardly tells them apart.
@@ -67,6 +67,8 @@ class DecayFit:
     q_lower_bound: float | None = None
     bootstrap: dict | None = None
     warnings: tuple = ()
+    method: str = "turning-points"  # or "waveform": what the values come from
+    method_reason: str | None = None
 
     @property
     def resolved(self) -> bool:
@@ -246,8 +248,8 @@ def _reported(record, candidates, selection):
     sigma = record.sigma
     if record.noise_from_residuals and math.isfinite(reduced):
         sigma = sigma * math.sqrt(reduced)  # the amplitude noise the residuals show
-    warnings = (selection.warnings() + _tie_warning(selection, y_fit)
-                + _diagnose(selection.terms, values, errors, (y_fit - y) / record.sigma,
+    warnings = (selection.warnings() + tie_warning(selection, y_fit)
+                + diagnose(selection.terms, values, errors, (y_fit - y) / record.sigma,
                             reported.success))
     q = q_stderr = q_parts = q_summary = q_bound = None
     if omega is not None and selection.model == NONE:
@@ -274,7 +276,7 @@ def _reported(record, candidates, selection):
         warnings=tuple(warnings))
 
 
-def _tie_warning(selection, y_fit):
+def tie_warning(selection, y_fit):
     """The "cannot tell" warning, with the amplitude range the record spans."""
     if selection.resolved or selection.forced:
         return []
@@ -292,13 +294,14 @@ def _tie_warning(selection, y_fit):
             f"damping fit it equally well; {said}"]
 
 
-def _diagnose(terms, values, errors, weighted_residuals, converged):
-    """Warnings a careful reader needs next to the numbers."""
+def diagnose(terms, values, errors, weighted_residuals, converged, autocorrelation=True):
+    """Warnings a careful reader needs next to the numbers (the residuals' lag-one
+    autocorrelation only where neighbouring residuals should be independent)."""
     warnings = []
     if not converged:
         warnings.append("the least-squares fit did not report convergence")
     n = weighted_residuals.size
-    r1 = _lag_one_autocorrelation(weighted_residuals)
+    r1 = _lag_one_autocorrelation(weighted_residuals) if autocorrelation else 0.0
     if r1 * math.sqrt(n) > 3.0:
         warnings.append(f"residuals are correlated (lag-1 autocorrelation {r1:.2f}): the "
                         "standard errors understate the uncertainty, or the model misses a "
