@@ -137,3 +137,16 @@ def test_auto_keeps_the_turning_point_fit_on_the_fig_20_19_sample():
 def test_auto_keeps_the_turning_point_fit_on_real_records(path):
     fit = analyse_record(read_record(path)).fit
     assert fit.method == "turning-points"
+
+
+def test_auto_keeps_the_turning_points_of_a_viscous_oscillator():
+    """exp(-beta*t)*cos(w_d*t) at Q = 3 is no solution of Eq. 20.55, whose b is
+    hysteretic, but its turning points follow the averaged law with b = beta exactly."""
+    beta = OMEGA / 6
+    t = np.arange(0.0, 8.0, 0.01)
+    x = (np.exp(-beta * t) * np.cos(math.sqrt(OMEGA**2 - beta**2) * t)
+         + np.random.default_rng(5).normal(0.0, 1e-4, t.size))
+    fit = analyse_record(Record(source="viscous", t=t, x=x)).fit
+    assert fit.method == "turning-points" and fit.model == "b"
+    assert "linear viscous oscillator" in fit.method_reason
+    assert abs(fit.values["b"] - beta) < 3 * fit.stderr["b"]

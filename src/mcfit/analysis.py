@@ -3,16 +3,19 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mcfit.errors import McfitError, UsageError
+from mcfit.errors import FitError, McfitError, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
+from mcfit.fit.pendulum import RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning, \
+    names_degrees
+from mcfit.fit.selection import LRT_ALPHA
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "failed_analysis", "fit_turning_points",
-           "fit_by_method"]
+           "fit_by_method", "with_large_swing_warning"]
 
 # How the coefficients are fitted: "auto" takes the waveform fit only where the averaged
 # law's bias would be a noticeable part of the statistical error.
@@ -43,18 +46,38 @@ def failed_analysis(source: str, message: str, record=None, turning=None) -> Ana
     return Analysis(source=source, status="error", error=message, record=record, turning=turning)
 
 
-def fit_turning_points(turning: TurningPoints, **options) -> DecayFit | PowerLawFit:
+def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
+                       **options) -> DecayFit | PowerLawFit:
     """:func:`mcfit.fit.fit_decay` on the used turning points, with their uncertainties
     (only when every one is finite and > 0) and period (when known); ``options`` go to
-    ``fit_decay``. Raises :class:`mcfit.errors.FitError` for unusable turning points."""
+    ``fit_decay``. Raises :class:`mcfit.errors.FitError` for unusable turning points.
+
+    With ``pendulum`` the signal is a pendulum's swing angle (radians, or degrees with
+    ``degrees``) and the pendulum's law is fitted (:func:`mcfit.fit.pendulum.fit_pendulum`;
+    ``bootstrap`` and ``rng`` are not available there). Without it, a fluid term found in a
+    record whose period grows with amplitude as a pendulum's does gets a warning."""
     used = turning.used
     sigma = turning.sigma[used]
     if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
         sigma = None
     period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
     period_sigma = turning.period_sigma if math.isfinite(turning.period_sigma) else None
-    return fit_decay(turning.t[used], turning.y[used], sigma, period=period,
-                     period_sigma=period_sigma, domain=turning.domain, **options)
+    if pendulum:
+        return _fit_pendulum(turning, sigma, period, period_sigma, degrees, **options)
+    fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
+                    period_sigma=period_sigma, domain=turning.domain, **options)
+    return with_large_swing_warning(fit, turning, degrees)
+
+
+def with_large_swing_warning(fit, turning: TurningPoints, degrees=False):
+    """``fit`` with :func:`mcfit.fit.pendulum.large_swing_warning` added when it applies."""
+    if not isinstance(fit, DecayFit) or turning.domain != "time":
+        return fit
+    scale = RADIANS_PER_DEGREE if degrees else 1.0
+    values = {"a": fit.values["a"] / scale, "b": fit.values["b"], "c": fit.values["c"] * scale}
+    warning = large_swing_warning(values, fit.model, turning.y[turning.used] * scale,
+                                  turning.period_drift, turning.period_drift_sigma)
+    return fit if warning is None else replace(fit, warnings=fit.warnings + (warning,))
 
 
 def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", model=None):
@@ -62,9 +85,8 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
     motion when ``method`` asks for it or, for "auto", when the averaged law's predicted
     bias exceeds :data:`mcfit.model_error.LIMIT` standard errors. The result
     says which it is and why (``method``, ``method_reason``)."""
-    from dataclasses import replace
 
-    from mcfit.fit.waveform import fit_waveform
+    from mcfit.fit.waveform import fit_waveform, viscous_aicc
     from mcfit.model_error import LIMIT, averaged_law_bias
 
     if method not in METHODS:
@@ -78,19 +100,71 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
             else "no waveform fit for this model or domain")
         return replace(fit, method_reason=why) if fit.model != "power" else fit
     error = averaged_law_bias(record.t, turning, fit)
+    q_min = error.q_min if error.q_min and math.isfinite(error.q_min) else None
     said = (f"the averaged law's bias is predicted at {error.largest:.2g} standard errors"
-            + (f" at Q down to {error.q_min:.3g}" if error.q_min else ""))
+            + (f" at Q down to {q_min:.3g} without the Coulomb term" if q_min else ""))
     if method == "auto" and error.largest <= LIMIT:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
     waveform = fit_waveform(record.t, record.x, turning, fit, criterion=criterion,
                             forced=model)
+    if method == "auto" and viscous_aicc(record.t, record.x, turning, fit) <= min(
+            c.aicc for c in waveform.candidates):
+        return replace(fit, method_reason=f"{said}, but the waveform is a linear viscous "
+                       "oscillator's, whose turning points follow the averaged law exactly")
+    if method == "auto" and not describes_waveform(waveform, fit):
+        return replace(fit, method_reason=f"{said}, but the equation of motion does not fit "
+                       "the waveform: the turning-point fit is kept",
+                       warnings=fit.warnings + (_misfit_warning(waveform),))
     why = "asked for" if method == "waveform" else f"{said}: fitted by the equation of motion"
     return replace(waveform, method_reason=why)
 
 
+# The waveform fit is trusted only while its reduced chi-square stays below this and below
+# this many times the turning-point fit's (the prediction of bias assumes Eq. 20.55 holds).
+MISFIT_LIMIT = 4.0
+
+
+def describes_waveform(waveform, turning_point_fit) -> bool:
+    """Whether Eq. 20.55 fits the waveform about as well as the averaged law its turning
+    points (reduced chi-squares compared; each in its own noise units)."""
+    reduced = waveform.reduced_chi_square
+    baseline = turning_point_fit.reduced_chi_square
+    if not math.isfinite(reduced) or waveform.status != "ok":
+        return False
+    return reduced <= MISFIT_LIMIT * max(1.0, baseline if math.isfinite(baseline) else 1.0)
+
+
+def _misfit_warning(waveform):
+    return (f"the equation of motion (Eq. 20.55) fits the waveform with reduced chi-square "
+            f"{waveform.reduced_chi_square:.3g}: the damping force has another form (a "
+            "viscous force, for example, whose turning points follow the averaged law "
+            "exactly at any Q); the turning-point fit is reported")
+
+
+def _fit_pendulum(turning, sigma, period, period_sigma, degrees, *, criterion="aicc",
+                  model=None, bootstrap=0, rng=None, alpha=LRT_ALPHA):
+    if turning.domain != "time":
+        raise FitError("the pendulum correction needs turning points against time, not "
+                       "cycle number", option="pendulum")
+    if bootstrap:
+        raise FitError("the pendulum correction has no bootstrap yet", option="bootstrap")
+    used = turning.used
+    # Half-cycle fits of a waveform measure the fundamental; a table gives the extrema.
+    table = not math.isfinite(turning.noise_sigma)
+    return fit_pendulum(turning.t[used], turning.y[used], sigma, period=period,
+                        period_sigma=period_sigma, signs=turning.sign[used], degrees=degrees,
+                        amplitudes="peak" if table else "fundamental", criterion=criterion,
+                        model=model, alpha=alpha)
+
+
 def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=None,
-                   method="auto") -> Analysis:
+                   pendulum=False, degrees=None, method="auto") -> Analysis:
     """Turning points of ``record`` and the fit of the amplitude law to the used ones.
+
+    ``pendulum``: the signal is a pendulum's swing angle, in degrees when ``degrees`` or,
+    if ``degrees`` is None, when the signal column's name says so ("deg", "°"), else in
+    radians (see :func:`fit_turning_points`). Otherwise ``method`` chooses between the
+    turning-point fit and the waveform fit (:func:`fit_by_method`).
 
     Expected failures (no usable decay, too few turning points) come back as an
     :class:`Analysis` with ``status == "error"``; they are not raised.
@@ -101,9 +175,17 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     except McfitError as error:
         return failed_analysis(source, str(error), record=record)
     try:
+        if degrees is None:
+            degrees = names_degrees(getattr(record, "signal_column", None))
         fit = fit_turning_points(turning, criterion=criterion, model=model,
-                                 bootstrap=bootstrap, rng=rng)
-        fit = fit_by_method(record, turning, fit, method, criterion=criterion, model=model)
+                                 bootstrap=bootstrap, rng=rng, pendulum=pendulum,
+                                 degrees=degrees)
+        if not pendulum:
+            chosen = fit_by_method(record, turning, fit, method, criterion=criterion,
+                                   model=model)
+            if getattr(chosen, "method", None) != getattr(fit, "method", None):
+                chosen = with_large_swing_warning(chosen, turning, degrees)
+            fit = chosen
     except McfitError as error:
         return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)
     error = None if fit.message is None else f"{source}: {fit.message}"

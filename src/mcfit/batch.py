@@ -44,6 +44,8 @@ class FitOptions:
     seed: int | None = None
     method: str = "auto"
     output_format: str = "text"
+    pendulum: bool = False
+    degrees: bool | None = None  # None: from the signal column's name
 
 
 @dataclass(frozen=True)
@@ -135,6 +137,7 @@ def _job_for(source, options, plot_path):
         analysis = analyse_record(record, criterion=options.criterion, model=options.model,
                                   bootstrap=options.bootstrap,
                                   rng=np.random.default_rng(options.seed),
+                                  pendulum=options.pendulum, degrees=options.degrees,
                                   method=options.method)
     except McfitError as error:
         analysis = failed_analysis(_display_name(source), " ".join(str(error).split()),

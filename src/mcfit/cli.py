@@ -272,6 +272,7 @@ Examples:
   mcfit data/ --format csv -o results.csv --plot-dir plots --jobs 2
   mcfit lab.txt --signal-col 2 --model ab
   mcfit peaks.csv --input turning-points --domain cycle
+  mcfit swing.csv --pendulum --degrees
 """
 
 
@@ -318,8 +319,16 @@ def _column(value):
               help="Directory for one PNG report figure per record (batch).")
 @click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Worker processes; results stay in input order.")
+@click.option("--pendulum", is_flag=True,
+              help="The signal is a pendulum's swing angle (radians): fit with the "
+                   "large-swing geometry of sin(theta); coefficients keep their small-angle "
+                   "meaning.")
+@click.option("--degrees", is_flag=True,
+              help="The angle is in degrees (also when the signal column's name says 'deg' "
+                   "or '°').")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
-        bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs):
+        bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs, pendulum,
+        degrees):
     if jobs > 1:
         # Each worker fits small problems: BLAS threads would only compete for the cores.
         # Set before numpy is first imported (here and in the workers); user settings win.
@@ -327,6 +336,10 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
             os.environ.setdefault(variable, "1")
     if model is not None:
         model = _parsed_model(model)
+    if pendulum and bootstrap:
+        raise UsageError("--bootstrap is not available with --pendulum yet.")
+    if pendulum and model == "power":
+        raise UsageError("--model power is not available with --pendulum.")
     if plot_file is not None and plot_dir is not None:
         raise UsageError("give --plot FILE or --plot-dir DIR, not both.")
     if rate is not None and time_col is not None:
@@ -338,7 +351,8 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     options = dict(time_col=_column(time_col), signal_col=_column(signal_col),
                    sheet=_column(sheet), rate=rate, input=input_kind, domain=domain,
                    criterion=criterion, model=model,
-                   bootstrap=bootstrap, seed=seed, method=method)
+                   bootstrap=bootstrap, seed=seed, method=method, pendulum=pendulum,
+                   degrees=True if degrees else None)
     with _stop_signals_interrupt():
         try:
             failures = _fit_files(files, output, output_format, plot_file, plot_dir, jobs,

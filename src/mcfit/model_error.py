@@ -29,7 +29,8 @@ SCREEN_CONSTANT = 0.11
 @dataclass(frozen=True)
 class ModelError:
     """The predicted bias of each kept coefficient in its standard errors (``z``), the
-    largest, the smallest Q of the record, and how it was found ("screen" or "chain")."""
+    largest, the record's smallest Q of its viscous and fluid terms, and how it was found
+    ("screen" or "chain")."""
 
     z: dict
     largest: float
@@ -41,7 +42,7 @@ def averaged_law_bias(t, turning, fit) -> ModelError:
     """Predicted bias of the turning-point ``fit`` of the waveform record ``t`` with
     ``turning`` points, in standard errors."""
     terms = fit.selection.terms
-    q_min = fit.q_summary["min"] if fit.q_summary else None
+    q_min = _smallest_rate_q(fit)
     if not terms or q_min is None or any(not fit.stderr[k] for k in terms):
         return ModelError({}, 0.0, q_min, "screen")
     relative = SCREEN_CONSTANT / q_min**2
@@ -50,6 +51,19 @@ def averaged_law_bias(t, turning, fit) -> ModelError:
         return ModelError(z, max(z.values()), q_min, "screen")
     z = _chain_bias(t, turning, fit)
     return ModelError(z, max(map(abs, z.values()), default=0.0), q_min, "chain")
+
+
+def _smallest_rate_q(fit):
+    """Q of the viscous and fluid terms at the largest amplitude, omega/(2*(b + a*y0)).
+
+    The Coulomb term is left out: the averaged law's Coulomb decrement is exact in a linear
+    oscillator and its corrections scale with the other terms' damping ratio. None when
+    there is no frequency; inf when there is no viscous or fluid damping.
+    """
+    if fit.omega is None:
+        return None
+    rate = fit.values["b"] + fit.values["a"] * fit.values["y0"]
+    return fit.omega / (2.0 * rate) if rate > 0 else math.inf
 
 
 def _chain_bias(t, turning, fit):

@@ -112,6 +112,11 @@ def to_json_dict(analysis: Analysis) -> dict:
                                 **{f"{k}_stderr": _number(e) for k, e in fit.stderr.items()}}
         if getattr(fit, "bootstrap", None) is not None:
             out["bootstrap"] = _bootstrap_json(fit.bootstrap)
+        if getattr(fit, "angle_unit", None) is not None:  # the pendulum's law was fitted
+            out["pendulum"] = {
+                "angle_unit": fit.angle_unit,
+                "small_angle_period": _number(fit.small_angle_period),
+                "small_angle_period_stderr": _number(fit.small_angle_period_stderr)}
         out["warnings"] = list(analysis.warnings)
     if record is not None:
         out["columns"] = {"time": record.time_column, "signal": record.signal_column}
@@ -259,6 +264,14 @@ def to_text(analysis: Analysis) -> str:
     if data.get("method_reason"):
         lines.append(f"  method:          {data['method'].replace('-', ' ')} "
                      f"({data['method_reason']})")
+    pendulum = data.get("pendulum")
+    if pendulum is not None:
+        period0 = pendulum["small_angle_period"]
+        period0_text = (f"; small-angle period {_with_error(period0, pendulum['small_angle_period_stderr'])} s"
+                        if period0 is not None else "")
+        lines.append(f"  pendulum:        large-swing correction applied (angle in "
+                     f"{pendulum['angle_unit']}{period0_text}); coefficients are small-angle "
+                     "values, Q = 2*pi*E/(energy lost per cycle)")
     lines += _regimes_lines(fit)
     params = data["params"]
     unit = data.get("params_units", "per second")

@@ -10,6 +10,8 @@ Each step lives in one module:
 - :mod:`~mcfit.fit.uncertainty`: covariance, Q with its error, lower bound, bootstrap;
 - :mod:`~mcfit.fit.power`: the free power law, :class:`PowerLawFit`;
 - :mod:`~mcfit.fit.decay_fit`: :func:`fit_decay`, which runs them in turn.
+- :mod:`~mcfit.fit.pendulum`: :func:`fit_pendulum`, the same for a pendulum's swing angle
+  at large amplitudes (the sin(theta) geometry, THEORY.md section 8).
 
 numpy/scipy/lmfit only, no I/O. The names below are loaded when first used, so that
 ``mcfit.fit.models`` can be imported without the numerical stack.
@@ -26,6 +28,7 @@ _PUBLIC = {
     "fit_decay": "decay_fit", "PowerLawFit": "power", "LRT_ALPHA": "selection",
     "TIE_DELTA": "selection", "Selection": "selection",
     "boundary_lrt_p_value": "selection", "select_model": "selection",
+    "PendulumFit": "pendulum", "fit_pendulum": "pendulum",
 }
 __all__ = sorted(_PUBLIC)
 

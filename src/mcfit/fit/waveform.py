@@ -82,14 +82,8 @@ def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
     DecayFit
         With ``method == "waveform"``; values, errors and Q from the waveform fit.
     """
-    used = np.flatnonzero(turning.used)
-    t0, t_end = float(turning.t[used[0]]), float(turning.t[used[-1]])
-    window = (t >= t0) & (t <= t_end)
-    tw, xw = t[window], x[window]
-    theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
+    tw, xw, t0, nuisance = _window(t, x, turning, start_fit)
     noise = sample_noise(xw)
-    e0 = turning.equilibrium + turning.equilibrium_drift * (t0 - t[0])
-    nuisance = [theta0, start_fit.omega, e0, turning.equilibrium_drift]
     starts = {c.model: c.values for c in start_fit.candidates}
     models = MODELS if forced is None else tuple(m for m in starts)
     candidates = {}
@@ -99,6 +93,40 @@ def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
         candidates[model] = _ranked(_Waveform(tw, xw, t0, terms_of(model), noise), start)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
     return _reported(selection, candidates, tw, xw, t0, noise, start_fit)
+
+
+def viscous_aicc(t, x, turning, start_fit):
+    """AICc of the linear viscous oscillator x = e0 + e1*tau + y0*exp(-beta*tau)*cos(w*tau +
+    theta0) (tau = t - t0) fitted to the same samples as :func:`fit_waveform`, in the same
+    noise units: comparable with its candidates' AICc. Its turning points follow the
+    averaged law with b = beta exactly, at any Q."""
+    tw, xw, t0, nuisance = _window(t, x, turning, start_fit)
+    noise = sample_noise(xw)
+    tau = tw - t0
+    rate = start_fit.values["b"] + start_fit.values["a"] * start_fit.values["y0"]
+
+    def residual(p):
+        y0, theta0, omega, e0, e1, beta = p
+        return (e0 + e1 * tau + y0 * np.exp(-beta * tau) * np.cos(omega * tau + theta0)
+                - xw) / noise
+
+    start = np.array([start_fit.values["y0"]] + nuisance + [rate])
+    lower, upper = _bounds(start[:5], ("b",))
+    result = optimize.least_squares(residual, np.clip(start, lower, upper),
+                                    bounds=(lower, upper), method="trf", x_scale="jac",
+                                    **_TOLERANCES)
+    return information_criteria(float(2 * result.cost), tw.size, start.size)[0]
+
+
+def _window(t, x, turning, start_fit):
+    """The finite samples from the first to the last used turning point, the start time
+    and the start of the nuisance parameters (phase, frequency, offset, drift)."""
+    used = np.flatnonzero(turning.used)
+    t0, t_end = float(turning.t[used[0]]), float(turning.t[used[-1]])
+    window = (t >= t0) & (t <= t_end) & np.isfinite(x)
+    theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
+    e0 = turning.equilibrium + turning.equilibrium_drift * (t0 - t[0])
+    return t[window], x[window], t0, [theta0, start_fit.omega, e0, turning.equilibrium_drift]
 
 
 def sample_noise(x):

@@ -1,0 +1,610 @@
+"""The amplitude law of a gravity pendulum at large swings, and its fit (THEORY.md section 8).
+
+For theta'' + D(theta') + w0**2 sin(theta) = 0 the energy at a turning point is
+E = w0**2 (1 - cos theta0), so dE/dtheta0 = w0**2 sin(theta0), and averaged over one exact
+(undamped) swing of period T(theta0) = T0 * 2K(k)/pi, k = sin(theta0/2),
+
+    dtheta0/dt = -(loop integral of theta' D(theta') dt) / (w0**2 sin(theta0) T(theta0)).
+
+With the small-angle meanings of the coefficients, c = 2*tau/(pi*w0) for a Coulomb torque
+tau*sgn(theta'), b = beta for viscous damping 2*beta*theta' and a = 4*kappa*w0/(3*pi) for
+quadratic drag kappa*theta'*|theta'|, this is
+
+    dtheta0/dt = -(c*G0 + b*theta0*G1 + a*theta0**2*G2)
+
+with factors of the amplitude alone that tend to 1 as theta0 -> 0 (K, E complete elliptic
+integrals of modulus k, k' = cos(theta0/2)):
+
+    G0 = pi*theta0 / (2 K sin(theta0))                    Coulomb: loss 4*tau*theta0 per cycle
+    G1 = 8 (E - k'**2 K) / (K theta0 sin(theta0))          viscous: loop of theta'**2 dt
+                                                            = 16 w0 (E - k'**2 K)
+    G2 = 3 pi (sin(theta0) - theta0 cos(theta0))           drag: loop of |theta'|**3 dt
+         / (2 K theta0**2 sin(theta0))                        = 8 w0**2 (sin - theta0 cos)
+
+w0 drops out: the law depends on the amplitude in radians only. It has no closed form and
+is integrated numerically (DOP853, rtol 1e-11) with its sensitivities to (y0, a, b, c).
+The candidate models and the verdict are those of the ordinary fit
+(:mod:`mcfit.fit.selection`); Q is the energy's, 2*pi*E over the energy lost per cycle.
+
+numpy/scipy/lmfit only, no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import lmfit
+import numpy as np
+from scipy import integrate, optimize, special
+
+from mcfit.errors import FitError
+from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
+from mcfit.fit.decay_fit import MIN_POINTS, DecayFit, diagnose, tie_warning
+from mcfit.fit.models import CRITERIA, MODELS, NONE, POWER, REGIME_NAMES, TERMS, \
+    parse_model, terms_of
+from mcfit.fit.problem import PARAMETERS
+from mcfit.fit.selection import LRT_ALPHA, select_model
+from mcfit.fit.uncertainty import ParameterErrors, summarise_q
+
+__all__ = ["PendulumFit", "fit_pendulum", "geometric_factors", "period_ratio",
+           "fundamental_amplitude",
+           "names_degrees", "RADIANS_PER_DEGREE", "large_swing_warning"]
+
+RADIANS_PER_DEGREE = math.pi / 180.0
+# Amplitudes beyond this (178 degrees) are too close to going over the top to fit.
+_LARGEST_ANGLE = 3.1
+# Below this amplitude the elliptic forms lose digits to cancellation: series instead.
+_SERIES_BELOW = 0.02
+_RTOL, _ATOL = 1e-11, 1e-14
+_TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
+_COLUMN = {name: i for i, name in enumerate(PARAMETERS)}
+
+
+def names_degrees(column_name) -> bool:
+    """Whether a signal column's header names degrees ("angle (deg)", "theta [°]")."""
+    name = str(column_name or "").lower()
+    return "deg" in name or "°" in name
+
+
+def period_ratio(theta0):
+    """T(theta0)/T0 = 2K(k)/pi, k = sin(theta0/2): the exact period of the undamped swing
+    over the small-angle one (theta0 in radians, |theta0| < pi)."""
+    k = np.sin(0.5 * np.abs(np.asarray(theta0, dtype=float)))
+    return 2.0 * special.ellipk(k * k) / math.pi
+
+
+def fundamental_amplitude(theta0):
+    """The amplitude of the fundamental in the Fourier series of the undamped swing of
+    amplitude ``theta0`` (radians): 8*sqrt(q)/(1 + q), q = exp(-pi*K(k')/K(k)) the nome.
+
+    A pendulum's swing is flatter at its turning points than a sine of the same amplitude,
+    so this exceeds theta0 (by 0.53 % at 1 rad). It is what a least-squares fit of
+    A*cos(w*s) over a half cycle centred on a crest measures (the odd harmonics are
+    orthogonal to cos(w*s) there), as :func:`mcfit.turning.find_turning_points` does.
+    """
+    theta = np.abs(np.asarray(theta0, dtype=float))
+    m = np.sin(0.5 * theta) ** 2
+    with np.errstate(divide="ignore"):
+        nome = np.exp(-math.pi * special.ellipkm1(m) / special.ellipk(m))
+    return 8.0 * np.sqrt(nome) / (1.0 + nome)
+
+
+def peak_from_fundamental(amplitude):
+    """The swing amplitude theta0 whose fundamental is ``amplitude`` (radians): the inverse
+    of :func:`fundamental_amplitude` by Newton's method, odd in ``amplitude``."""
+    target = np.asarray(amplitude, dtype=float)
+    size = np.abs(target)
+    theta = np.minimum(size, _LARGEST_ANGLE)
+    for _ in range(6):
+        step = 1e-6 * np.maximum(theta, 1e-3)
+        slope = (fundamental_amplitude(theta + step)
+                 - fundamental_amplitude(np.maximum(theta - step, 0.0))) / (
+                     theta + step - np.maximum(theta - step, 0.0))
+        theta = np.clip(theta - (fundamental_amplitude(theta) - size) / slope, 0.0,
+                        _LARGEST_ANGLE)
+    return np.sign(target) * theta
+
+
+def geometric_factors(theta0):
+    """(G0, G1, G2): the Coulomb, viscous and quadratic-drag decay rates of the amplitude
+    of a pendulum at amplitude ``theta0`` (radians, |theta0| < pi) over their small-angle
+    values c, b*theta0 and a*theta0**2. Each is 1 at theta0 = 0 and even in theta0."""
+    theta = np.abs(np.asarray(theta0, dtype=float))
+    m = np.sin(0.5 * theta) ** 2
+    big_k = special.ellipk(m)
+    small = theta < _SERIES_BELOW
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.sin(theta)
+        g0 = math.pi * theta / (2.0 * big_k * s)
+        # E - k'^2 K = k^2 (K - R_D(0, k'^2, 1)/3) (Carlson): no cancellation as k -> 0.
+        difference = m * (big_k - special.elliprd(0.0, 1.0 - m, 1.0) / 3.0)
+        g1 = 8.0 * difference / (big_k * theta * s)
+        g2 = 3.0 * math.pi * (s - theta * np.cos(theta)) / (2.0 * big_k * theta**2 * s)
+    t2 = theta * theta
+    # Taylor series about 0 (checked against the closed forms in the tests).
+    g0 = np.where(small, 1.0 + 5.0 * t2 / 48.0 + 431.0 * t2 * t2 / 46080.0, g0)
+    g1 = np.where(small, 1.0 + 5.0 * t2 / 96.0 + 17.0 * t2 * t2 / 3840.0, g1)
+    g2 = np.where(small, 1.0 + t2 / 240.0 + 809.0 * t2 * t2 / 322560.0, g2)
+    return g0, g1, g2
+
+
+def _rate_terms(theta):
+    """(h0, h1, h2) = (G0, theta*G1, theta**2*G2): the law is -(c*h0 + b*h1 + a*h2)."""
+    g0, g1, g2 = geometric_factors(theta)
+    return np.array([g0, theta * g1, theta * theta * g2])
+
+
+def _rate_terms_slope(theta):
+    """d(h0, h1, h2)/dtheta by central differences (only the Jacobian uses it)."""
+    step = 1e-5 * max(abs(theta), 1e-2)
+    return (_rate_terms(theta + step) - _rate_terms(theta - step)) / (2.0 * step)
+
+
+def _amplitude_solution(t, y0, a, b, c, sensitivities=True):
+    """theta0 at times ``t`` (>= 0, from the first turning point) from y0, and, with
+    ``sensitivities``, d theta0/d(y0, a, b, c), shape (n, 4). The amplitude stays at 0 once
+    it reaches it (Coulomb friction stops the swing in finite time)."""
+    t = np.asarray(t, dtype=float)
+    coefficients = np.array([c, b, a])
+
+    def rhs(_, state):
+        theta = max(state[0], 0.0)
+        h = _rate_terms(theta)
+        out = np.empty_like(state)
+        out[0] = -float(coefficients @ h)
+        if sensitivities:
+            slope = -float(coefficients @ _rate_terms_slope(theta))
+            out[1:] = slope * state[1:]
+            out[2] -= h[2]
+            out[3] -= h[1]
+            out[4] -= h[0]
+        return out
+
+    def stopped(_, state):
+        return state[0]
+    stopped.terminal, stopped.direction = True, -1
+
+    start = np.array([y0, 1.0, 0.0, 0.0, 0.0]) if sensitivities else np.array([y0])
+    theta = np.zeros(t.size)
+    jacobian = np.zeros((t.size, 4))
+    if y0 <= 0 or t.size == 0:
+        jacobian[:, 0] = t == 0
+        return theta, jacobian
+    end = float(t[-1])
+    if end <= 0:
+        theta[:], jacobian[:, 0] = y0, 1.0
+        return theta, jacobian
+    scale = max(abs(y0), 1e-300)
+    solution = integrate.solve_ivp(rhs, (0.0, end), start, method="DOP853", t_eval=t,
+                                   events=stopped, rtol=_RTOL, atol=_ATOL * scale)
+    reached = solution.t.size
+    theta[:reached] = solution.y[0]
+    if sensitivities:
+        jacobian[:reached] = solution.y[1:].T
+    return np.maximum(theta, 0.0), jacobian
+
+
+class _Problem:
+    """One model's least-squares problem: time from the first turning point over the span,
+    angles in radians, coefficients per span (a per radian per span, c radians per span).
+    The law is integrated once per parameter vector, with its sensitivities."""
+
+    def __init__(self, t, theta, weights, terms):
+        self.t, self.theta, self.weights = t, theta, weights
+        self.weight_scale = float(np.max(weights))
+        self.free = ("y0",) + tuple(terms)
+        self.columns = [_COLUMN[k] for k in self.free]
+        self._key = self._solution = None
+        self.evaluations = 0
+
+    def values(self, free_values):
+        values = np.zeros(4)
+        values[self.columns] = free_values
+        return values
+
+    def solve(self, free_values):
+        key = tuple(self.values(free_values))
+        if key != self._key:
+            self.evaluations += 1
+            self._key, self._solution = key, _amplitude_solution(self.t, *key)
+        return self._solution
+
+    def residual(self, free_values):
+        return (self.solve(free_values)[0] - self.theta) * self.weights / self.weight_scale
+
+    def jacobian(self, free_values):
+        return (self.solve(free_values)[1][:, self.columns]
+                * (self.weights / self.weight_scale)[:, None])
+
+    def chi_square(self, free_values):
+        return float(np.sum(((self.solve(free_values)[0] - self.theta) * self.weights) ** 2))
+
+    def covariance(self, free_values):
+        """Unscaled (J^T J)^-1 with the record's weights (pseudo-inverse)."""
+        jacobian = self.solve(free_values)[1][:, self.columns] * self.weights[:, None]
+        return np.linalg.pinv(jacobian.T @ jacobian)
+
+
+@dataclass(frozen=True, eq=False)
+class PendulumFit(DecayFit):
+    """A :class:`DecayFit` of the pendulum's amplitude law. Coefficients keep their
+    small-angle meaning and the units of the signal (radians, or degrees when the record is
+    in degrees); ``small_angle_period`` is T0 in s, ``angle_unit`` "rad" or "deg"."""
+
+    small_angle_period: float | None = None
+    small_angle_period_stderr: float | None = None
+    angle_unit: str = "rad"
+
+    @property
+    def radians_per_unit(self) -> float:
+        return RADIANS_PER_DEGREE if self.angle_unit == "deg" else 1.0
+
+    def amplitude(self, t):
+        """The fitted amplitude at times ``t`` (signal units), by the pendulum's law."""
+        t = np.maximum(np.asarray(t, dtype=float) - self.t0, 0)
+        order = np.argsort(t, kind="stable")
+        scale = self.radians_per_unit
+        v = self.values
+        theta, _ = _amplitude_solution(t[order], v["y0"] * scale, v["a"] / scale, v["b"],
+                                       v["c"] * scale, sensitivities=False)
+        out = np.empty_like(t)
+        out[order] = theta / scale
+        return out
+
+
+def fit_pendulum(t, y, sigma=None, *, period=None, period_sigma=None, signs=None,
+                 degrees=False, amplitudes="peak", criterion="aicc", model=None,
+                 alpha=LRT_ALPHA) -> PendulumFit:
+    """Fit the pendulum's amplitude law dtheta0/dt = -(c*G0 + b*theta0*G1 + a*theta0**2*G2)
+    to turning points of a swing angle, and choose the regimes as :func:`fit_decay` does.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Turning-point times in s, increasing.
+    y : array_like, shape (n,)
+        Turning-point amplitudes of the swing angle about the vertical, in radians (degrees
+        with ``degrees=True``); all below 178 degrees.
+    sigma : array_like, shape (n,), optional
+        Relative weights, as for :func:`fit_decay` (the noise scale comes from the residuals).
+    period, period_sigma : float, optional
+        The measured period (s) and its error; with ``signs`` (+1/-1 per turning point) the
+        small-angle period T0 is fitted to the crest times, else taken from the period.
+    degrees : bool
+    amplitudes : {"peak", "fundamental"}
+        What ``y`` measures: the peak angle of each swing (a table of extrema), or the
+        amplitude of the fundamental (a half-cycle fit of a waveform, as
+        :func:`mcfit.turning.find_turning_points` gives); the latter are converted to peak
+        angles (:func:`peak_from_fundamental`) before fitting.
+    criterion, model, alpha
+        As for :func:`fit_decay`; ``model="power"`` is not available here.
+
+    Returns
+    -------
+    PendulumFit
+        Coefficients with their small-angle meaning (b is the small-swing decay rate), in
+        the signal's units; Q = 2*pi*E/(energy lost per cycle) at each amplitude.
+    """
+    t = np.asarray(t, dtype=float)
+    y = np.asarray(y, dtype=float)
+    if t.shape != y.shape or t.ndim != 1 or t.size < MIN_POINTS:
+        raise FitError(f"the pendulum fit needs at least {MIN_POINTS} turning points as 1-D "
+                       "arrays of equal length")
+    if not (np.all(np.isfinite(t)) and np.all(np.isfinite(y))) or np.any(np.diff(t) <= 0):
+        raise FitError("turning-point times must be finite and strictly increasing, and "
+                       "amplitudes finite")
+    if criterion not in CRITERIA:
+        raise FitError(f"unknown criterion {criterion!r}; use one of {', '.join(CRITERIA)}",
+                       option="criterion")
+    forced = parse_model(model) if model is not None else None
+    if forced == POWER:
+        raise FitError("the power law is not available with the pendulum correction",
+                       option="model")
+    scale = RADIANS_PER_DEGREE if degrees else 1.0
+    theta = y * scale
+    largest = float(np.max(theta))
+    if not largest > 0:
+        raise FitError("no turning-point amplitude is > 0: there is no decay to fit")
+    if largest >= _LARGEST_ANGLE:
+        unit = "degrees" if degrees else "radians"
+        raise FitError(f"the swing reaches {largest / scale:.4g} {unit}, beyond 178 degrees: "
+                       "the pendulum correction needs a swinging pendulum (is the angle in "
+                       "degrees?)", option="degrees")
+    noise_from_residuals = sigma is None
+    sigma = np.ones_like(y) if sigma is None else np.asarray(sigma, dtype=float)
+    if sigma.shape != y.shape or not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
+        raise FitError("amplitude uncertainties must be finite and > 0, one per turning point")
+    if amplitudes == "fundamental":
+        peak = peak_from_fundamental(theta)
+        slope = np.where(np.abs(theta) > 0, peak / np.where(theta != 0, theta, 1.0), 1.0)
+        theta, y, sigma = peak, peak / scale, sigma * slope
+    elif amplitudes != "peak":
+        raise ValueError("amplitudes must be 'peak' or 'fundamental'")
+    span = float(t[-1] - t[0])
+    tau = (t - t[0]) / span
+    weights = 1.0 / (sigma * scale)
+    models = MODELS if forced is None else tuple(
+        m for m in MODELS if m == forced or (len(terms_of(m)) == len(terms_of(forced)) - 1
+                                             and set(terms_of(m)) <= set(terms_of(forced))))
+    candidates = _fit_candidates(tau, theta, weights, models, span, scale)
+    selection = select_model(candidates, criterion, alpha, n_points=t.size, forced=forced)
+    return _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selection,
+                     period, period_sigma, signs, noise_from_residuals,
+                     "deg" if degrees else "rad")
+
+
+def _physical(values, span, scale):
+    """Internal (y0, a, b, c) (radians, per span) -> {name: value} in signal units per s."""
+    y0, a, b, c = (float(v) for v in values)
+    return {"y0": y0 / scale, "a": a * scale / span, "b": b / span, "c": c / (scale * span)}
+
+
+def _physical_factors(span, scale):
+    return np.array([1.0 / scale, scale / span, 1.0 / span, 1.0 / (scale * span)])
+
+
+def _candidate(model, values, chi_square, success, evaluations, n_points, span, scale,
+               problem=None):
+    n_params = len(terms_of(model)) + 1
+    aicc, bic = information_criteria(chi_square, n_points, n_params)
+    correlation = {}
+    if problem is not None and len(problem.free) > 2:
+        covariance = problem.covariance(values[problem.columns])
+        errors = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+        for i, first in enumerate(problem.free[1:], start=1):
+            for j, second in enumerate(problem.free[i + 1:], start=i + 1):
+                product = errors[i] * errors[j]
+                correlation[f"{first},{second}"] = (float(covariance[i, j] / product)
+                                                    if product > 0 else 0.0)
+    return Candidate(model, n_params, chi_square, aicc, bic, success,
+                     _physical(values, span, scale), evaluations, correlation, values)
+
+
+def _fit_candidates(tau, theta, weights, models, span, scale):
+    """Every model fitted with scipy's bounded trust-region-reflective solver, started from
+    the best of: a linear estimate of the small-angle law and the best fit one term smaller
+    (so a larger model never fits worse than a nested smaller one)."""
+    fitted = {}
+    w2 = weights**2
+    for model in models:
+        if model == NONE:
+            y0 = max(float(np.sum(w2 * theta) / np.sum(w2)), 0.0)
+            chi_square = float(np.sum(w2 * (theta - y0) ** 2))
+            fitted[model] = _candidate(NONE, np.array([y0, 0.0, 0.0, 0.0]), chi_square, True,
+                                       1, tau.size, span, scale)
+            continue
+        problem = _Problem(tau, theta, weights, model)
+        starts = [_linear_start(tau, theta, weights, model)]
+        smaller = [fitted[m] for m in fitted if len(terms_of(m)) == len(model) - 1
+                   and set(terms_of(m)) <= set(model)]
+        if smaller:
+            best = min(smaller, key=lambda c: c.chi_square).internal.copy()
+            rate = max(float(np.sum(best[1:])), 1e-3)
+            for k in model:  # off the bound, where the Jacobian of a term may vanish
+                best[_COLUMN[k]] = max(best[_COLUMN[k]], 1e-3 * rate)
+            starts.append(best)
+        results = [_bounded(problem, start) for start in starts]
+        values, chi_square, success = min(results, key=lambda r: r[1])
+        fitted[model] = _candidate(model, values, chi_square, success, problem.evaluations,
+                                   tau.size, span, scale, problem)
+    return fitted
+
+
+def _upper_bounds(problem):
+    return np.array([_LARGEST_ANGLE] + [np.inf] * (len(problem.free) - 1))
+
+
+def _bounded(problem, start):
+    x0 = np.minimum(np.maximum(start[problem.columns], 0.0), 0.999 * _LARGEST_ANGLE)
+    try:
+        result = optimize.least_squares(problem.residual, x0, jac=problem.jacobian,
+                                        bounds=(0.0, _upper_bounds(problem)), method="trf",
+                                        x_scale="jac", max_nfev=200 * len(problem.free),
+                                        **_TOLERANCES)
+    except (ValueError, FloatingPointError):
+        return problem.values(x0), math.inf, False
+    return problem.values(result.x), problem.chi_square(result.x), bool(result.success)
+
+
+def _linear_start(tau, theta, weights, terms):
+    """(y0, a, b, c) from the integrated small-angle law by non-negative least squares."""
+    steps = np.diff(tau)
+    int_y = np.concatenate([[0.0], np.cumsum(0.5 * (theta[1:] + theta[:-1]) * steps)])
+    int_y2 = np.concatenate([[0.0], np.cumsum(0.5 * (theta[1:] ** 2 + theta[:-1] ** 2)
+                                               * steps)])
+    design = np.column_stack([np.ones_like(tau), -int_y2, -int_y, -tau]) * weights[:, None]
+    columns = [0] + [_COLUMN[k] for k in terms]
+    solution, _ = optimize.nnls(design[:, columns], theta * weights)
+    start = np.zeros(4)
+    start[columns] = solution
+    rate = max(1.0, -math.log(max(theta[-1] / np.max(theta), 1e-3)))
+    for k in terms:
+        start[_COLUMN[k]] = max(start[_COLUMN[k]], 1e-3 * rate)
+    if start[0] <= 0:
+        start[0] = theta[0] if theta[0] > 0 else float(np.max(theta))
+    return start
+
+
+def _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selection, period,
+              period_sigma, signs, noise_from_residuals, angle_unit):
+    """The selected model refitted with lmfit, with its errors, Q(t) and warnings."""
+    chosen = candidates[selection.model]
+    if selection.model == NONE:
+        free, internal, covariance = ("y0",), chosen.internal, None
+        chi_square, success, evaluations = chosen.chi_square, True, 1
+        dof = t.size - 1
+        if dof > 0:
+            covariance = np.array([[chi_square / dof / float(np.sum(weights**2))]])
+    else:
+        problem = _Problem(tau, theta, weights, selection.model)
+        params = lmfit.Parameters()
+        for name, value in zip(problem.free, chosen.internal[problem.columns]):
+            params.add(name, value=max(float(value), 0.0), min=0.0,
+                       max=_LARGEST_ANGLE if name == "y0" else np.inf)
+        result = lmfit_least_squares(
+            lambda p: problem.residual([p[k].value for k in problem.free]),
+            lambda p: problem.jacobian([p[k].value for k in problem.free]), params)
+        x = np.array([result.params[k].value for k in problem.free])
+        free, internal = problem.free, problem.values(x)
+        chi_square, success = problem.chi_square(x), bool(result.success)
+        evaluations = chosen.evaluations + problem.evaluations
+        dof = t.size - len(free)
+        covariance = None
+        if dof > 0:
+            covariance = getattr(result, "covar", None)
+            if covariance is None or not np.all(np.isfinite(covariance)) or \
+                    np.any(np.diag(covariance) < 0):
+                covariance = problem.covariance(x) * chi_square / dof
+        candidates = {**candidates, selection.model: _candidate(
+            selection.model, internal, chi_square, success, evaluations, t.size, span,
+            scale, problem)}
+    dof = t.size - len(free)
+    reduced = chi_square / dof if dof > 0 else math.nan
+    factors = _physical_factors(span, scale)[[_COLUMN[k] for k in free]]
+    stderr = dict.fromkeys(PARAMETERS)
+    correlation, physical_covariance = {}, None
+    if covariance is not None:
+        physical_covariance = covariance * np.outer(factors, factors)
+        errors = np.sqrt(np.maximum(np.diag(physical_covariance), 0.0))
+        stderr.update({k: float(e) for k, e in zip(free, errors)})
+        for i, first in enumerate(free):
+            for j, second in enumerate(free[i + 1:], start=i + 1):
+                if errors[i] > 0 and errors[j] > 0:
+                    correlation[f"{first},{second}"] = float(
+                        physical_covariance[i, j] / (errors[i] * errors[j]))
+    values = _physical(internal, span, scale)
+    theta_fit, sensitivity = _amplitude_solution(tau, *internal)
+    y_fit = theta_fit / scale
+    sigma_out = sigma * math.sqrt(reduced) if noise_from_residuals and math.isfinite(reduced) \
+        else sigma
+    period0, period0_sigma = _small_angle_period(t, theta_fit, signs, period, period_sigma)
+    q = q_stderr = q_parts = q_summary = None
+    if period0 is not None and selection.model != NONE:
+        q, q_stderr, q_parts = _quality(theta_fit, sensitivity, internal, free, covariance,
+                                        span, period0, period0_sigma)
+        q_summary = summarise_q(q, q_stderr)
+    warnings = (selection.warnings() + tie_warning(selection, y_fit)
+                + diagnose(selection.terms, values,
+                            ParameterErrors(stderr, correlation, physical_covariance),
+                            (y_fit - y) / sigma, success))
+    omega = 2 * math.pi / period0 if period0 else None
+    return PendulumFit(
+        status="ok" if success else "error",
+        message=None if success else "the fit did not converge",
+        model=selection.model, domain="time", criterion=selection.criterion,
+        t0=float(t[0]), omega=omega, values=values, stderr=stderr, correlation=correlation,
+        regimes={REGIME_NAMES[k]: k in selection.terms for k in TERMS},
+        lrt_p_values=selection.p_values, candidates=tuple(candidates.values()),
+        n_points=t.size, rms=float(np.sqrt(np.mean((y_fit - y) ** 2))),
+        reduced_chi_square=float(reduced), noise_from_residuals=noise_from_residuals,
+        selection=selection, t=t, y=y, y_fit=y_fit, sigma=sigma_out, q=q, q_stderr=q_stderr,
+        q_parts=q_parts, q_summary=q_summary, warnings=tuple(warnings),
+        small_angle_period=period0, small_angle_period_stderr=period0_sigma,
+        angle_unit=angle_unit)
+
+
+def _small_angle_period(t, theta, signs, period, period_sigma):
+    """T0 (s) and its standard error: a straight line through the crest times against the
+    swing's phase, each half-cycle counting T(theta0)/(2*T0) = K(k)/pi at its mean
+    amplitude, with an offset between maxima and minima. Without usable signs, the measured
+    period over the mean period ratio."""
+    if period is None or not period > 0:
+        return None, None
+    ratio = period_ratio(theta)
+    fallback = (period / float(np.mean(ratio)),
+                None if period_sigma is None else period_sigma / float(np.mean(ratio)))
+    if signs is None or len(signs) != t.size or np.any(np.asarray(signs) == 0):
+        return fallback
+    signs = np.asarray(signs, dtype=float)
+    steps = np.maximum(np.round(np.diff(t) / (0.5 * period)), 1.0)
+    phase = np.concatenate([[0.0], np.cumsum(steps * 0.25 * (ratio[1:] + ratio[:-1]))])
+    design = np.column_stack([np.ones_like(t), phase, 0.5 * signs])
+    weights = theta / np.max(theta)  # the crest time's error falls as the amplitude grows
+    solution, _, rank, _ = np.linalg.lstsq(design * weights[:, None], t * weights, rcond=None)
+    dof = t.size - 3
+    if rank < 3 or dof <= 0 or not solution[1] > 0:
+        return fallback
+    residual = (t - design @ solution) * weights
+    covariance = np.linalg.pinv((design * weights[:, None]).T @ (design * weights[:, None]))
+    error = math.sqrt(max(float(covariance[1, 1] * (residual @ residual) / dof), 0.0))
+    return float(solution[1]), error
+
+
+def _q_of(theta, coefficients, period0):
+    """Q = 2*pi*E/(energy lost per cycle) = 2*pi*(1 - cos)/(sin * T(theta0) * rate), and its
+    parts (Coulomb, viscous, drag), for physical (c, b, a) in radians per s."""
+    h = _rate_terms(theta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stored = 2 * math.pi * (1.0 - np.cos(theta)) / (np.sin(theta) * period_ratio(theta)
+                                                         * period0)
+        parts = [stored / (coefficient * term) for coefficient, term in zip(coefficients, h)]
+        q = stored / np.sum(np.asarray(coefficients)[:, None] * h, axis=0)
+    return q, parts
+
+
+def _quality(theta, sensitivity, internal, free, covariance, span, period0, period0_sigma):
+    """Q(t), its standard error by the delta method (the period's error included) and its
+    parts, in the keys of :attr:`DecayFit.q_parts`."""
+    coefficients = np.array([internal[3], internal[2], internal[1]]) / span  # c, b, a per s
+    q, parts = _q_of(theta, coefficients, period0)
+    q_parts = {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}
+    if covariance is None:
+        return q, None, q_parts
+    step = 1e-6 * np.maximum(theta, 1e-3)
+    dq_dtheta = (_q_of(theta + step, coefficients, period0)[0]
+                 - _q_of(theta - step, coefficients, period0)[0]) / (2 * step)
+    h = _rate_terms(theta)
+    rate = coefficients @ h
+    direct = {"y0": np.zeros_like(theta), "a": -q * h[2] / rate / span,
+              "b": -q * h[1] / rate / span, "c": -q * h[0] / rate / span}
+    with np.errstate(invalid="ignore", over="ignore"):
+        gradient = np.column_stack([dq_dtheta * sensitivity[:, _COLUMN[k]] + direct[k]
+                                    for k in free])
+        relative = (period0_sigma or 0.0) / period0
+        variance = (np.einsum("ij,jk,ik->i", gradient, covariance, gradient)
+                    + (q * relative) ** 2)
+        q_stderr = np.sqrt(np.maximum(variance, 0.0))
+    return q, np.where(np.isfinite(q_stderr), q_stderr, np.nan), q_parts
+
+
+def large_swing_warning(values, model, amplitudes, period_drift, period_drift_sigma):
+    """A warning when a fluid term was reported for a record whose period grows with
+    amplitude as a pendulum's does, else None.
+
+    ``values`` are the fitted (small-angle law) y0, a, b, c and ``amplitudes`` the used
+    turning-point amplitudes, both in radians; ``period_drift`` is the relative change of
+    the period from the smallest to the largest amplitude, with its standard error. The
+    pendulum's drift is T(theta_max)/T(theta_min) - 1; when the measured one matches it
+    (within 3 standard errors and a third of itself) and is clearly > 0, the geometry of
+    sin(theta) alone makes viscous damping faster at the largest amplitude by
+    G1(theta_max)/G1(theta_min), which the fit of the small-angle law reads as a fluid term.
+    """
+    if "a" not in model or not all(map(math.isfinite, (period_drift, period_drift_sigma))):
+        return None
+    amplitudes = np.asarray(amplitudes, dtype=float)
+    amplitudes = amplitudes[np.isfinite(amplitudes) & (amplitudes > 0)]
+    if amplitudes.size < 2:
+        return None
+    low, high = float(np.min(amplitudes)), float(np.max(amplitudes))
+    if not high < _LARGEST_ANGLE:
+        return None
+    # The record's drift is the slope of a straight line through the periods against the
+    # amplitude, times the amplitude range: the pendulum's, measured the same way.
+    ratio = period_ratio(amplitudes)
+    expected = float(np.polyfit(amplitudes, ratio, 1)[0] * (high - low) / np.mean(ratio))
+    mismatch = abs(period_drift - expected)
+    if not (expected > 3 * period_drift_sigma and mismatch <= 3 * period_drift_sigma
+            + expected / 3):
+        return None
+    geometric = float(geometric_factors(high)[1] / geometric_factors(low)[1])
+    rest = values["b"] + values["c"] / high
+    found = (f"the fluid term found raises the decay rate there by a factor "
+             f"{1.0 + values['a'] * high / rest:.3g}" if rest > 0 else
+             f"the fluid term found makes the decay rate {high / low:.3g} "
+             "times faster there than at the smallest")
+    return (f"the period grows with amplitude as a pendulum's does ({100 * period_drift:+.2g} "
+            f"%, {100 * expected:+.2g} % expected for a swing of {high:.3g} rad): the geometry "
+            f"of sin(theta) alone makes viscous damping {geometric:.3g} times faster at the "
+            f"largest amplitude than at the smallest, and {found}. If the signal is a "
+            "pendulum's angle, fit it with --pendulum")
