@@ -225,8 +225,10 @@ def test_amplitude_is_finite_bounded_and_warning_free(t, y0, a, b, c):
        b=st.floats(0, 2.0), c=st.floats(0, 2.0), fraction=st.floats(0, 1.0))
 def test_same_shape_at_every_amplitude_scale(scale, y0, a, b, c, fraction):
     """y(t; s*y0, a/s, b, s*c) = s*y(t; y0, a, b, c): the law has no preferred amplitude unit."""
-    # Only where a/s is a double: a subnormal a (5e-324) divided by 2 is 0, another law.
+    # Only where a/s and s*c are normal doubles: a subnormal a or c (5e-324) times 0.5 is 0,
+    # another law.
     assume(a == 0 or a / scale >= sys.float_info.min)
+    assume(c == 0 or min(c, scale * c) >= sys.float_info.min)
     t = fraction * min(10.0 * _decay_time(y0, a, b, c), decay.stop_time(y0, a, b, c))
     y = decay.amplitude(t, y0, a, b, c)
     scaled = decay.amplitude(t, scale * y0, a / scale, b, scale * c)
