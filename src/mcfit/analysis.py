@@ -14,7 +14,8 @@ from mcfit.fit.pendulum import RADIANS_PER_DEGREE, fit_pendulum, large_swing_war
 from mcfit.fit.selection import LRT_ALPHA
 from mcfit.turning import TurningPoints, turning_points_of
 
-__all__ = ["METHODS", "Analysis", "analyse_record", "failed_analysis", "fit_turning_points",
+__all__ = ["METHODS", "Analysis", "analyse_record", "crop_record", "failed_analysis",
+           "fit_turning_points",
            "fit_by_method", "with_large_swing_warning"]
 
 # How the coefficients are fitted: "auto" takes the waveform fit only where the averaged
@@ -157,10 +158,39 @@ def _fit_pendulum(turning, sigma, period, period_sigma, degrees, *, criterion="a
                         model=model, alpha=alpha)
 
 
+def crop_record(record, start=None, end=None):
+    """``record`` kept to ``start <= t <= end`` (either may be None), with a note.
+
+    Raises :class:`mcfit.errors.UsageError` when the window is empty or reversed."""
+    if start is None and end is None:
+        return record
+    if start is not None and end is not None and not start < end:
+        raise UsageError(f"the window's start {start:g} is not before its end {end:g}",
+                         option="start")
+    keep = np.ones(record.t.size, dtype=bool)
+    if start is not None:
+        keep &= record.t >= start
+    if end is not None:
+        keep &= record.t <= end
+    unit = "cycle" if record.domain == "cycle" else (record.time_unit or "s")
+    low = f"{start:g} {unit}" if start is not None else "the start"
+    high = f"{end:g} {unit}" if end is not None else "the end"
+    if not np.any(keep):
+        raise UsageError(f"{record.source}: no samples in the window from {low} to {high}; "
+                         f"the record spans {np.nanmin(record.t):g} to "
+                         f"{np.nanmax(record.t):g} {unit}",
+                         option="start" if start is not None else "end")
+    note = (f"window: {low} to {high} as asked ({np.count_nonzero(keep)} of "
+            f"{keep.size} rows kept)")
+    return replace(record, t=record.t[keep], x=record.x[keep], notes=record.notes + (note,))
+
+
 def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=None,
-                   pendulum=False, degrees=None, method="auto") -> Analysis:
+                   pendulum=False, degrees=None, method="auto", start=None,
+                   end=None) -> Analysis:
     """Turning points of ``record`` and the fit of the amplitude law to the used ones.
 
+    ``start``, ``end``: fit only the part of the record between these times (or cycles).
     ``pendulum``: the signal is a pendulum's swing angle, in degrees when ``degrees`` or,
     if ``degrees`` is None, when the signal column's name says so ("deg", "°"), else in
     radians (see :func:`fit_turning_points`). Otherwise ``method`` chooses between the
@@ -171,6 +201,7 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     """
     source = record.source
     try:
+        record = crop_record(record, start, end)
         turning = turning_points_of(record)
     except McfitError as error:
         return failed_analysis(source, str(error), record=record)

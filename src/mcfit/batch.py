@@ -46,6 +46,9 @@ class FitOptions:
     output_format: str = "text"
     pendulum: bool = False
     degrees: bool | None = None  # None: from the signal column's name
+    turning_points_out: bool = False  # also give each record's turning points as CSV rows
+    start: float | None = None  # window of the record to fit (time or cycle)
+    end: float | None = None
 
 
 @dataclass(frozen=True)
@@ -61,6 +64,7 @@ class JobResult:
     error: str | None
     output: str
     plot_error: str | None = None
+    turning_points: str = ""  # CSV rows of the turning points, when asked for
 
 
 def expand_inputs(arguments) -> list[str]:
@@ -120,7 +124,7 @@ def _job(argument):
 
     analysis = failed_analysis(_display_name(source), message)
     return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
-                     output=_format(analysis, options.output_format))
+                     output=_format(analysis, options))
 
 
 def _job_for(source, options, plot_path):
@@ -138,7 +142,8 @@ def _job_for(source, options, plot_path):
                                   bootstrap=options.bootstrap,
                                   rng=np.random.default_rng(options.seed),
                                   pendulum=options.pendulum, degrees=options.degrees,
-                                  method=options.method)
+                                  method=options.method, start=options.start,
+                                  end=options.end)
     except McfitError as error:
         analysis = failed_analysis(_display_name(source), " ".join(str(error).split()),
                                    record=record)
@@ -150,18 +155,22 @@ def _job_for(source, options, plot_path):
             _plot(analysis, plot_path)
         except (OSError, ValueError) as error:
             plot_error = f"cannot write plot {plot_path}: {error}"
+    from mcfit.report import turning_points_rows
+
+    rows = turning_points_rows(analysis) if options.turning_points_out else ""
     return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
-                     output=_format(analysis, options.output_format), plot_error=plot_error)
+                     output=_format(analysis, options), plot_error=plot_error,
+                     turning_points=rows)
 
 
-def _format(analysis, output_format):
+def _format(analysis, options):
     """The record in the one format the command line writes (each costs a full summary)."""
     from mcfit import report
 
-    if output_format == "json":
+    if options.output_format == "json":
         return report.to_json(analysis)
-    if output_format == "csv":
-        return report.to_csv_row(analysis)
+    if options.output_format == "csv":
+        return report.to_csv_row(analysis, bootstrap=options.bootstrap > 0)
     return report.to_text(analysis)
 
 
@@ -353,4 +362,4 @@ def _lost(worker):
 
     analysis = failed_analysis(_display_name(source), message)
     return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
-                     output=_format(analysis, options.output_format))
+                     output=_format(analysis, options))

@@ -319,6 +319,12 @@ def _column(value):
               help="Directory for one PNG report figure per record (batch).")
 @click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
               help="Worker processes; results stay in input order.")
+@click.option("--turning-points-out", type=click.Path(dir_okay=False), metavar="FILE.csv",
+              help="Also write every record's turning points (t, amplitude, sigma, used or "
+                   "why not, fitted envelope) to this CSV file.")
+@click.option("--start", type=float, metavar="T",
+              help="Fit only from this time (or cycle number) on, e.g. after the release.")
+@click.option("--end", type=float, metavar="T", help="Fit only up to this time (or cycle).")
 @click.option("--pendulum", is_flag=True,
               help="The signal is a pendulum's swing angle (radians): fit with the "
                    "large-swing geometry of sin(theta); coefficients keep their small-angle "
@@ -327,8 +333,8 @@ def _column(value):
               help="The angle is in degrees (also when the signal column's name says 'deg' "
                    "or '°').")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
-        bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs, pendulum,
-        degrees):
+        bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs,
+        turning_points_out, start, end, pendulum, degrees):
     if jobs > 1:
         # Each worker fits small problems: BLAS threads would only compete for the cores.
         # Set before numpy is first imported (here and in the workers); user settings win.
@@ -340,6 +346,8 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
         raise UsageError("--bootstrap is not available with --pendulum yet.")
     if pendulum and model == "power":
         raise UsageError("--model power is not available with --pendulum.")
+    if start is not None and end is not None and not start < end:
+        raise UsageError(f"--start {start:g} must come before --end {end:g}.")
     if plot_file is not None and plot_dir is not None:
         raise UsageError("give --plot FILE or --plot-dir DIR, not both.")
     if rate is not None and time_col is not None:
@@ -352,11 +360,12 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
                    sheet=_column(sheet), rate=rate, input=input_kind, domain=domain,
                    criterion=criterion, model=model,
                    bootstrap=bootstrap, seed=seed, method=method, pendulum=pendulum,
-                   degrees=True if degrees else None)
+                   degrees=True if degrees else None, start=start, end=end,
+                   turning_points_out=turning_points_out is not None)
     with _stop_signals_interrupt():
         try:
             failures = _fit_files(files, output, output_format, plot_file, plot_dir, jobs,
-                                  options)
+                                  options, turning_points_out)
         except (KeyboardInterrupt, _Stopped) as interruption:
             # Stopped before the first record was written: nothing to keep.
             click.echo("\nInterrupted before any record was finished.", err=True)
@@ -364,7 +373,8 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     sys.exit(1 if failures else 0)
 
 
-def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options):
+def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
+               turning_points_out=None):
     """Check the outputs against each other and the inputs, then fit and write; return the
     number of failed records."""
     from mcfit import batch
@@ -384,7 +394,8 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options)
     else:
         plot_paths = [plot_file] * len(sources)
         plots = [("--plot", plot_file)] if plot_file is not None else []
-    outputs = ([("-o", output)] if output != "-" else []) + plots
+    outputs = (([("-o", output)] if output != "-" else []) + plots
+               + ([("--turning-points-out", turning_points_out)] if turning_points_out else []))
     _refuse_outputs_that_clash(outputs, files, sources)
     if plot_dir is not None:
         try:
@@ -395,7 +406,9 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options)
     options = batch.FitOptions(output_format=output_format, **options)
     results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
     try:
-        return _write_results(results, sources, output_format, output)
+        return _write_results(results, sources, output_format, output,
+                              bootstrap=options.bootstrap > 0,
+                              turning_points_out=turning_points_out)
     finally:
         results.close()  # ends the worker processes at once after an error
 
@@ -440,14 +453,17 @@ def _refuse_outputs_that_clash(outputs, arguments, sources):
                                  "to another directory.")
 
 
-def _write_results(results, sources, output_format, output):
+def _write_results(results, sources, output_format, output, bootstrap=False,
+                   turning_points_out=None):
     """Write each result as it arrives; return the number of failed records.
 
     With -o the lines go to a temporary file that replaces the target at the end, or at an
-    interruption, so the file always holds whole records only.
+    interruption, so the file always holds whole records only; the same for the turning
+    points' file.
     """
     total = len(sources)
     target = Output(output)
+    points = _TurningPointsOutput(turning_points_out)
     failures = done = written = 0
     show_progress = total > 1 and sys.stderr.isatty()
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
@@ -456,9 +472,10 @@ def _write_results(results, sources, output_format, output):
         if output_format == "csv":
             from mcfit.report import csv_header
 
-            target.write(csv_header())
+            target.write(csv_header(bootstrap))
         for result in results:
             done += 1
+            points.write(result.turning_points)
             if result.status != "ok":
                 failures += 1
                 click.echo(f"Error: {printable(result.error)}", err=True)
@@ -466,7 +483,7 @@ def _write_results(results, sources, output_format, output):
                 failures += 1
                 click.echo(f"Error: {printable(result.plot_error)}", err=True)
             if output_format == "json":
-                target.write(result.output + "\n" if total > 1 else _pretty_json(result.output))
+                target.write(result.output + "\n")
             elif output_format == "csv":
                 target.write(result.output)
             elif result.status == "ok" or target.temporary is not None:
@@ -483,26 +500,47 @@ def _write_results(results, sources, output_format, output):
         kept = f" and kept in {output}." if target.temporary is not None else "."
         click.echo(f"\n{name}: {done} of {total} records finished{kept}", err=True)
         target.commit()
+        points.commit()
         sys.exit(_exit_code_of(interruption))
     except BaseException:
         target.discard()
+        points.discard()
         raise
     finally:
         if progress is not None:
             progress.render_finish()
     target.commit()
+    points.commit()
     return failures
+
+
+class _TurningPointsOutput:
+    """The --turning-points-out file (header, then each record's rows), or nothing."""
+
+    def __init__(self, path):
+        self.output = None
+        if path is not None:
+            from mcfit.report import turning_points_header
+
+            self.output = Output(path)
+            self.output.write(turning_points_header())
+
+    def write(self, rows):
+        if self.output is not None and rows:
+            self.output.write(rows)
+
+    def commit(self):
+        if self.output is not None:
+            self.output.commit()
+
+    def discard(self):
+        if self.output is not None:
+            self.output.discard()
 
 
 def _printable_lines(text):
     """A text report with every line made safe for a terminal (notes quote file contents)."""
     return "\n".join(escape_controls(line) for line in text.split("\n"))
-
-
-def _pretty_json(line):
-    import json
-
-    return json.dumps(json.loads(line), indent=2) + "\n"
 
 
 _BENCH_HELP = """Measure speed against error and print the tables (BENCHMARKS.md).

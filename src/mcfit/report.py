@@ -11,11 +11,16 @@ from mcfit import decay
 from mcfit.analysis import Analysis
 from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS
 
-__all__ = ["CSV_COLUMNS", "to_json_dict", "to_json", "csv_header", "to_csv_row", "to_text"]
+__all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS",
+           "turning_points_header", "turning_points_rows", "to_json_dict", "to_json", "csv_header", "to_csv_row", "to_text"]
 
 CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", "b", "b_stderr",
                "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error",
-               "q_initial_stderr", "q_final_stderr")
+               "q_initial_stderr", "q_final_stderr", "domain", "units", "method", "resolved",
+               "reduced_chi_square", "warnings")
+# Appended with --bootstrap: the 95 % interval of each parameter and of Q.
+BOOTSTRAP_CSV_COLUMNS = tuple(f"{k}_boot_{end}" for k in ("y0", "a", "b", "c", "q_initial")
+                              for end in ("low", "high"))
 _Q_KEYS = ("initial", "final", "min", "max")
 
 
@@ -149,27 +154,78 @@ def _excluded_counts(turning) -> dict:
     return counts
 
 
-def csv_header() -> str:
-    return ",".join(CSV_COLUMNS) + "\n"
+def csv_columns(bootstrap=False) -> tuple:
+    """The CSV columns, with the bootstrap intervals' when ``bootstrap``."""
+    return CSV_COLUMNS + (BOOTSTRAP_CSV_COLUMNS if bootstrap else ())
 
 
-def to_csv_row(analysis: Analysis) -> str:
-    """One CSV line in the order of :data:`CSV_COLUMNS`."""
+def csv_header(bootstrap=False) -> str:
+    return ",".join(csv_columns(bootstrap)) + "\n"
+
+
+def to_csv_row(analysis: Analysis, bootstrap=False) -> str:
+    """One CSV line in the order of :func:`csv_columns`."""
     data = to_json_dict(analysis)
     params = data.get("params") or {}
     q = data.get("q") or {}
     row = {"source": data["source"], "status": data["status"], "model": data.get("model"),
            "period": data.get("period"), "q_initial": q.get("initial"), "q_final": q.get("final"),
            "q_initial_stderr": q.get("initial_stderr"), "q_final_stderr": q.get("final_stderr"),
-           "turning_points": data.get("turning_points"), "error": data.get("error")}
+           "turning_points": data.get("turning_points"), "error": data.get("error"),
+           "domain": data.get("domain"), "units": data.get("params_units"),
+           "method": data.get("method"), "resolved": data.get("resolved"),
+           "reduced_chi_square": (data.get("fit") or {}).get("reduced_chi_square"),
+           "warnings": "; ".join(data.get("warnings") or ()) or None}
     for k in ("y0", "a", "b", "c"):
         row[k] = (params.get(k) or {}).get("value")
         row[f"{k}_stderr"] = (params.get(k) or {}).get("stderr")
+    intervals = (data.get("bootstrap") or {}).get("interval_95") or {}
+    for column in BOOTSTRAP_CSV_COLUMNS:
+        name, _, end = column.rpartition("_boot_")
+        bounds = intervals.get(name)
+        row[column] = None if bounds is None else bounds[0 if end == "low" else 1]
     buffer = io.StringIO()
     csv.writer(buffer, lineterminator="\n").writerow(
-        ["" if row[k] is None else (repr(row[k]) if isinstance(row[k], float) else row[k])
-         for k in CSV_COLUMNS])
+        [_csv_cell(row[k]) for k in csv_columns(bootstrap)])
     return buffer.getvalue()
+
+
+TURNING_POINT_COLUMNS = ("source", "t", "amplitude", "sigma", "used", "excluded_reason",
+                         "envelope")
+
+
+def turning_points_header() -> str:
+    return ",".join(TURNING_POINT_COLUMNS) + "\n"
+
+
+def turning_points_rows(analysis: Analysis) -> str:
+    """One CSV line per turning point of the record (used or left out, with the reason),
+    with the fitted envelope at the used ones; "" when there are none."""
+    turning, fit = analysis.turning, analysis.fit
+    if turning is None:
+        return ""
+    envelope = [None] * len(turning.t)
+    y_fit = getattr(fit, "y_fit", None)
+    used = [i for i, flag in enumerate(turning.used) if flag]
+    if y_fit is not None and len(y_fit) == len(used):
+        for i, value in zip(used, y_fit):
+            envelope[i] = float(value)
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    for i in range(len(turning.t)):
+        writer.writerow([_csv_cell(v) for v in (
+            analysis.source, float(turning.t[i]), float(turning.y[i]),
+            _number(turning.sigma[i]), bool(turning.used[i]),
+            turning.excluded_reason[i] or None, envelope[i])])
+    return buffer.getvalue()
+
+
+def _csv_cell(value):
+    if value is None:
+        return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return repr(value) if isinstance(value, float) else value
 
 
 def _format(value, error=None):
@@ -240,6 +296,23 @@ def _bootstrap_lines(fit) -> list[str]:
     return lines
 
 
+def _fit_lines(fit) -> list[str]:
+    """Goodness of fit with the chosen model's scores, and the kept parameters'
+    correlations."""
+    chosen = next((c for c in fit.candidates if c.model == fit.model), None)
+    n_points = getattr(fit, "n_points", None)
+    scores = (f" (chi-square {chosen.chi_square:.4g} on {n_points - chosen.n_params} "
+              f"degrees of freedom, AICc {chosen.aicc:.4g}, BIC {chosen.bic:.4g})"
+              if chosen is not None and n_points else "")
+    lines = [f"  fit:             rms {fit.rms:.3g}, reduced chi-square "
+             f"{fit.reduced_chi_square:.3g}{scores}"]
+    correlation = getattr(fit, "correlation", None) or {}
+    if correlation:
+        lines.append("  correlations:    " + ", ".join(
+            f"{pair.replace(',', '-')} {r:+.3f}" for pair, r in correlation.items()))
+    return lines
+
+
 def to_text(analysis: Analysis) -> str:
     """The readable report for a person at a terminal."""
     data = to_json_dict(analysis)
@@ -288,8 +361,7 @@ def to_text(analysis: Analysis) -> str:
     q_line = _q_line(fit)
     if q_line:
         lines.append(q_line)
-    lines.append(f"  fit:             rms {fit.rms:.3g}, reduced chi-square "
-                 f"{fit.reduced_chi_square:.3g}")
+    lines += _fit_lines(fit)
     ranked = sorted(fit.candidates, key=lambda c: getattr(c, fit.criterion))
     if len(ranked) > 1:
         best = getattr(ranked[0], fit.criterion)

@@ -250,7 +250,8 @@ def _reported(record, candidates, selection):
         sigma = sigma * math.sqrt(reduced)  # the amplitude noise the residuals show
     warnings = (selection.warnings() + tie_warning(selection, y_fit)
                 + diagnose(selection.terms, values, errors, (y_fit - y) / record.sigma,
-                            reported.success))
+                            reported.success)
+                + ([] if record.noise_from_residuals else misfit_warning(reduced, dof)))
     q = q_stderr = q_parts = q_summary = q_bound = None
     if omega is not None and selection.model == NONE:
         q_bound = uncertainty.q_lower_bound(scaled, reported.values[0], omega,
@@ -315,6 +316,17 @@ def diagnose(terms, values, errors, weighted_residuals, converged, autocorrelati
             warnings.append(f"parameters {pair.replace(',', ' and ')} are nearly degenerate "
                             f"(correlation {r:+.3f}): the record hardly separates them")
     return warnings
+
+
+def misfit_warning(reduced_chi_square, dof):
+    """A warning when the reduced chi-square is far above 1 (beyond 1 + 5*sqrt(2/dof) and
+    above 2): the law misses the amplitudes by more than their own noise."""
+    if not (dof > 0 and reduced_chi_square > max(2.0, 1.0 + 5.0 * math.sqrt(2.0 / dof))):
+        return []
+    return [f"reduced chi-square {reduced_chi_square:.3g} is far above 1: the law does not "
+            "describe the amplitudes within their noise (a disturbed start, a beat with a "
+            "second mode, or noise underestimated); the standard errors are scaled by its "
+            "square root"]
 
 
 def _lag_one_autocorrelation(residuals):
