@@ -5,7 +5,10 @@ THEORY.md section 5, steps 1 and 2. numpy/scipy only, no I/O.
 Method for a waveform x(t):
 
 1. A coarse period from the spectrum and the white-noise level from the spectrum's floor
-   above 2.5 times the oscillation frequency.
+   above 2.5 times the oscillation frequency. Gaps longer than 32 samples are left empty
+   (zero) in the spectrum, not interpolated: the line across a long gap would be the
+   largest peak. A steady line (mains hum) more than 3 times from the oscillation's
+   frequency is subtracted here (:mod:`mcfit.hum`) and reported.
 2. Coarse extrema: the signal, lightly smoothed, minus a straight-line equilibrium, is split
    into half-cycles by crossings with hysteresis (so noise cannot make false extrema).
 3. Each crest is located by a least-squares fit over its half-cycle (the samples within a
@@ -39,6 +42,7 @@ import numpy as np
 from scipy import ndimage, special
 
 from mcfit.errors import RecordError
+from mcfit.hum import find_steady_line, subtract_steady_line
 
 __all__ = [
     "TurningPoints",
@@ -60,6 +64,8 @@ FLOOR_FACTOR = 1.5
 _LARGEST_VALUE = 1e30
 # Sixth-difference windows needed to fit the equilibrium's drift as well as its offset.
 _DRIFT_WINDOWS = 8
+# A gap longer than this many median steps is left empty (zeros) in the spectrum.
+_LONG_GAP_STEPS = 32
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,12 +235,19 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     steps = np.diff(tf)
     dt = float(np.median(steps))
     gaps = _find_gaps(t, finite, tf, steps, dt)
+    spectral_period, noise, periodogram = _spectrum(tf, xf, dt, steps)
+    if periodogram is not None:  # a hum far from the oscillation's frequency
+        frequencies, power, _, energy, _ = periodogram
+        line = find_steady_line(tf, xf, periodogram, noise if np.isfinite(noise) else 0.0)
+        if line is not None:
+            notes.append(line.note())
+            if line.removed:
+                xf = subtract_steady_line(tf, xf, line)
+                spectral_period = 1.0 / line.oscillation_frequency
+                noise = _spectral_noise(power, frequencies, line.oscillation_frequency,
+                                        energy, xf[:_SPECTRUM_SAMPLES])
     if gaps:
-        total = sum(b - a for a, b in gaps)
-        notes.append(f"{len(gaps)} gap(s) in the record, {total:.4g} time units in all "
-                     f"(longest from {max(gaps, key=lambda g: g[1] - g[0])[0]:.6g})")
-
-    spectral_period, noise = _spectrum(tf, xf, dt, steps)
+        notes.insert(0, _gap_note(gaps, spectral_period))
     if period is None:
         period = spectral_period
     period = float(period)
@@ -430,6 +443,20 @@ def _find_gaps(t, finite, tf, steps, dt):
     return sorted(gaps)
 
 
+def _gap_note(gaps, period):
+    """Where the gaps are: the fit spans them with the turning points on both sides."""
+    start, end = max(gaps, key=lambda g: g[1] - g[0])
+    cycles = f", about {(end - start) / period:.3g} periods" if np.isfinite(period) else ""
+    where = f"from t = {start:.6g} to {end:.6g} ({end - start:.4g} time units{cycles})"
+    if len(gaps) == 1:
+        head = f"a gap in the record {where}"
+    else:
+        total = sum(b - a for a, b in gaps)
+        head = (f"{len(gaps)} gaps in the record, {total:.4g} time units in all, the longest "
+                f"{where}")
+    return head + ": bridged, the turning points on both sides are used"
+
+
 def _line_fit(t, x):
     """Least-squares straight line x = e0 + e1*(t - t_ref), computed in chunks."""
     t_ref = float(t[0] + 0.5 * (t[-1] - t[0]))
@@ -485,19 +512,29 @@ def _equilibrium_line(t, x, period, noise):
 
 
 def _spectrum(t, x, dt, steps):
-    """(period, noise sigma) from a Hann-windowed periodogram of the first stretch."""
+    """(period, noise sigma, periodogram) from a Hann-windowed periodogram of the first
+    stretch; the periodogram is (frequencies, power, window sum, window sum of squares,
+    bin of the peak), or None when too short."""
     n = min(t.size, _SPECTRUM_SAMPLES)
     irregular = steps[: n - 1].size and (steps[: n - 1].max() > 1.05 * steps[: n - 1].min())
+    outside = None
     if irregular:
         grid = t[0] + dt * np.arange(int((t[n - 1] - t[0]) / dt) + 1)
         grid = grid[:_SPECTRUM_SAMPLES]
         v = np.interp(grid, t[:n], x[:n])
+        outside = _in_long_gaps(grid, t[:n], steps[: n - 1], dt)
     else:
         v = x[:n].astype(np.float64, copy=True)
     m = v.size
     index = np.arange(m, dtype=np.float64) - 0.5 * (m - 1)  # centred: the line's terms decouple
-    slope = float(np.dot(index, v) / np.dot(index, index)) if m > 1 else 0.0
-    v -= v.mean() + slope * index
+    if outside is None:
+        slope = float(np.dot(index, v) / np.dot(index, index)) if m > 1 else 0.0
+        v -= v.mean() + slope * index
+    else:  # a straight line across a long gap would be a spectral line of its own: zeros
+        inside = ~outside
+        slope, mean = np.polyfit(index[inside], v[inside], 1)
+        v -= mean + slope * index
+        v[outside] = 0.0
     window = np.hanning(m)
     v *= window
     power = np.abs(np.fft.rfft(v)) ** 2
@@ -505,7 +542,7 @@ def _spectrum(t, x, dt, steps):
     frequencies = np.fft.rfftfreq(m, d=dt)
     lowest = 2  # periods longer than half the stretch are drift, not oscillation
     if power.size <= lowest + 2:
-        return float("nan"), float("nan")
+        return float("nan"), float("nan"), None
     k = lowest + int(np.argmax(power[lowest:]))
     if 0 < k < power.size - 1:
         a, b, c = np.log(power[k - 1:k + 2] + 1e-300)
@@ -514,13 +551,32 @@ def _spectrum(t, x, dt, steps):
     else:
         offset = 0.0
     f0 = (k + offset) * frequencies[1]
+    energy = np.dot(window, window)
+    noise = _spectral_noise(power, frequencies, f0, energy, x[:n])
+    return ((1.0 / f0 if f0 > 0 else float("nan")), noise,
+            (frequencies, power, float(window.sum()), energy, k))
+
+
+def _spectral_noise(power, frequencies, f0, energy, x):
+    """White-noise sigma from the periodogram's floor above 2.5*f0 (``energy``: the
+    window's sum of squares)."""
     band = power[frequencies > 2.5 * f0]
     if band.size >= 16:
-        noise = np.sqrt(np.median(band) / (np.log(2) * np.dot(window, window)))
-    else:  # too few samples per cycle for a clean band: differences overestimate, safely
-        d = np.diff(x[:n])
-        noise = 1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2)
-    return (1.0 / f0 if f0 > 0 else float("nan")), float(noise)
+        return float(np.sqrt(np.median(band) / (np.log(2) * energy)))
+    # Too few samples per cycle for a clean band: differences overestimate, safely.
+    d = np.diff(x)
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / np.sqrt(2))
+
+
+def _in_long_gaps(grid, t, steps, dt):
+    """Grid points inside gaps longer than _LONG_GAP_STEPS median steps (None if none)."""
+    long_steps = np.flatnonzero(steps > _LONG_GAP_STEPS * dt)
+    if long_steps.size == 0:
+        return None
+    edges = np.zeros(grid.size + 1)
+    np.add.at(edges, np.searchsorted(grid, t[long_steps], side="right"), 1.0)
+    np.add.at(edges, np.searchsorted(grid, t[long_steps + 1]), -1.0)
+    return np.cumsum(edges[:-1]) > 0
 
 
 def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, source):
