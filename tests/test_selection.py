@@ -37,6 +37,8 @@ def test_an_undamped_sine_gives_no_damping_and_a_lower_bound_on_q():
         assert result.regimes == {"fluid": False, "hysteretic": False, "coulomb": False}
         assert all(result.values[k] == 0 and result.stderr[k] is None for k in "abc")
         assert result.q is None and result.q_summary is None and result.resolved
+        assert any(w.startswith("the amplitude does not decay over the") and
+                   "not a free decay" in w for w in result.warnings)
         slope, covariance = np.polyfit(t, noisy, 1, cov=True)
         b_upper = max(-slope[0], 0.0) + Z95 * math.sqrt(covariance[0, 0])
         assert result.q_lower_bound == pytest.approx(math.pi / b_upper, rel=0.1)

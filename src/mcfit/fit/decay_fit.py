@@ -256,7 +256,10 @@ def _reported(record, candidates, selection):
     if omega is not None and selection.model == NONE:
         q_bound = uncertainty.q_lower_bound(scaled, reported.values[0], omega,
                                             record.omega_sigma)
-    elif omega is not None:
+    if selection.model == NONE:
+        warnings.append(_no_decay_warning(float(t[-1] - t[0]),
+                                          "s" if record.domain == "time" else "cycles", q_bound))
+    if omega is not None and selection.model != NONE:
         q, q_stderr = uncertainty.q_with_stderr(t - t[0], values, errors.covariance,
                                                 reported.free, omega, record.omega_sigma)
         parts = decay.quality_parts(y_fit, omega, values["a"], values["b"], values["c"])
@@ -316,6 +319,13 @@ def diagnose(terms, values, errors, weighted_residuals, converged, autocorrelati
             warnings.append(f"parameters {pair.replace(',', ' and ')} are nearly degenerate "
                             f"(correlation {r:+.3f}): the record hardly separates them")
     return warnings
+
+
+def _no_decay_warning(span, unit, q_bound):
+    bound = f" (Q > {q_bound:.2g} at 95 %)" if q_bound is not None else ""
+    return (f"the amplitude does not decay over the {span:.4g} {unit} of the record{bound}: "
+            "either the damping is too weak to show in it or this is not a free decay (a "
+            "driven steady state looks like this)")
 
 
 def misfit_warning(reduced_chi_square, dof):
