@@ -15,6 +15,7 @@ from mcfit.cli import cli
 TINY = dataclasses.replace(
     bench.QUICK, name="tiny", steps_per_period=(50, 100), rtols=(1e-6,), snrs=(1e3,),
     samples_per_cycle=(20,), repeats=2, batch_records=2, batch_samples=2000, startup_runs=1,
+    method_records=1, method_qs=(5,),
     integrator_scenes=(bench.IntegratorScene("short Fig. 20.19", 0.1, 0.1, 0.01, 4.0, 0.5, 2.0),),
     fit_scenes=(bench.FitScene("short b", "b", 1.0, 0.0, 0.05, 0.0, 1.0, 30),
                 bench.FitScene("short abc", "abc", 4.0, 0.1, 0.1, 0.01, 0.5, 20)))
@@ -42,7 +43,7 @@ def test_quick_fitting_section_prints_every_method(monkeypatch):
 def test_every_section_runs_and_writes_the_plots(tmp_path):
     blocks = list(bench.run(TINY, plot_dir=tmp_path / "plots"))
     text = "\n".join(blocks)
-    for heading in ("Integrators:", "Fitting:", "Throughput:", "records/s",
+    for heading in ("Integrators:", "Fitting:", "Methods against Q", "Throughput:", "records/s",
                     "mcfit --help", "peak resident memory"):
         assert heading in text
     for setting in ("dt = T/50", "dt = T/100", "rtol 1e-06", "closed form"):

@@ -16,6 +16,9 @@ the printed table:
   (:func:`hilbert_envelope_rate`).
 - **verdicts** (:mod:`mcfit.bench_verdicts`): the rates of the true model, a spurious and
   a missed term, and the coverage of the 95 % intervals of a, b, c and Q, per scene.
+- **methods** (:mod:`mcfit.bench_methods`): the turning-point fit against the waveform fit
+  by Eq. 20.55 over Q from 2 to 50 (bias, RMSE and 95 % coverage of b in standard errors,
+  time per record), and how often ``--method auto`` chose the waveform.
 - **throughput** (:func:`run_throughput`): records per second through
   :func:`mcfit.analysis.analyse_record` in memory and through ``mcfit DIR --jobs 1`` and
   ``--jobs 2`` (:func:`mcfit.batch.run_jobs` over CSV files, run as a subprocess), peak
@@ -73,7 +76,7 @@ __all__ = [
     "run",
 ]
 
-SECTIONS = ("integrators", "fitting", "verdicts", "throughput")
+SECTIONS = ("integrators", "fitting", "verdicts", "methods", "throughput")
 
 # The common grid on which every integrator is compared with the reference (a divisor of
 # every fixed step's steps per period, so simulate_record samples the steps without
@@ -177,8 +180,8 @@ FIT_SCENES = (
 
 @dataclass(frozen=True)
 class BenchConfig:
-    """What a bench run covers. :data:`QUICK` runs in well under a minute, :data:`FULL`
-    in minutes on two cores.
+    """What a bench run covers. :data:`QUICK` runs in about two minutes, :data:`FULL` in
+    about an hour on two cores (most of it the methods section's waveform fits).
 
     Attributes
     ----------
@@ -199,6 +202,10 @@ class BenchConfig:
         Runs of each start-up command (the median is reported).
     verdict_records : int
         Noisy records per scene of the verdicts section.
+    method_records : int
+        Noisy records per Q of the methods section.
+    method_qs : tuple
+        The Q values of the methods section.
     seed : int
         Seed of every random record.
     integrator_scenes, fit_scenes : tuple
@@ -215,6 +222,8 @@ class BenchConfig:
     batch_samples: int = 10_000
     startup_runs: int = 3
     verdict_records: int = 40
+    method_records: int = 3
+    method_qs: tuple = (3, 20)
     seed: int = 2026
     integrator_scenes: tuple = INTEGRATOR_SCENES
     fit_scenes: tuple = FIT_SCENES
@@ -224,7 +233,8 @@ QUICK = BenchConfig()
 FULL = BenchConfig(name="full", steps_per_period=(50, 100, 250, 500, 1000, 2500, 5000),
                    rtols=(1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-11),
                    snrs=(1e2, 1e3, 1e4), samples_per_cycle=(10, 20, 50, 200), repeats=100,
-                   batch_records=200, startup_runs=7, verdict_records=400)
+                   batch_records=200, startup_runs=7, verdict_records=400,
+                   method_records=40, method_qs=(2, 3, 5, 10, 20, 50))
 
 
 def machine_summary(config: BenchConfig) -> str:
@@ -1023,5 +1033,10 @@ def run(config: BenchConfig = QUICK, sections=SECTIONS, plot_dir=None, progress=
 
         yield format_verdicts(run_verdicts(config.verdict_records, config.seed,
                                            progress=progress))
+    if "methods" in sections:
+        from mcfit.bench_methods import format_methods, run_methods
+
+        yield format_methods(run_methods(config.method_records, config.seed,
+                                         qs=config.method_qs, progress=progress))
     if "throughput" in sections:
         yield format_throughput(run_throughput(config, progress))
