@@ -140,6 +140,16 @@ def test_directory_input_and_jobs_keep_input_order(runner, tmp_path, rng):
     assert names == ["a.csv", "b.csv", "c.csv"]
 
 
+def test_a_directory_yields_every_kind_of_record_file(tmp_path):
+    from mcfit.batch import expand_inputs
+
+    names = ("a.lvm", "b.log", "c.csv.gz", "d.ods", "e.xls", "f.TXT", "notes.md", "g.gz")
+    for name in names:
+        (tmp_path / name).write_bytes(b"")
+    found = [Path(p).name for p in expand_inputs([str(tmp_path)])]
+    assert found == ["a.lvm", "b.log", "c.csv.gz", "d.ods", "e.xls", "f.TXT"]
+
+
 def test_output_file_is_written_and_an_input_is_never_overwritten(runner, tmp_path, rng):
     record = _write_record(tmp_path / "run.csv", rng)
     before = record.read_bytes()

@@ -21,7 +21,10 @@ from mcfit.errors import InputError, McfitError, UsageError
 
 __all__ = ["FitOptions", "JobResult", "expand_inputs", "run_jobs", "plot_path_for"]
 
-RECORD_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat", ".xlsx", ".xlsm")
+# What a directory's records are called (any file named on the command line is read by
+# its content): text, gzip-compressed text, LabVIEW and logger files, spreadsheets.
+RECORD_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat", ".lvm", ".log", ".xlsx", ".xlsm",
+                     ".xls", ".ods", ".csv.gz", ".tsv.gz", ".txt.gz", ".dat.gz")
 
 # Signals that stop a whole run. Workers ignore them: the parent keeps the finished records
 # and then ends the workers itself (a terminal's Ctrl-C reaches every process of the group).
@@ -74,7 +77,7 @@ def expand_inputs(arguments) -> list[str]:
         if argument != "-" and os.path.isdir(argument):
             try:
                 found = sorted(str(p) for p in Path(argument).iterdir()
-                               if p.is_file() and p.suffix.lower() in RECORD_EXTENSIONS)
+                               if p.is_file() and p.name.lower().endswith(RECORD_EXTENSIONS))
             except OSError as error:
                 raise InputError(f"cannot list directory {argument}: "
                                  f"{error.strerror or error}. Check its permissions, or name "
