@@ -322,3 +322,15 @@ def test_motion_imports_no_io_or_cli_libraries():
     output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True).stdout
     assert output.strip() == "[]"
+
+
+def test_accurate_start_with_a_velocity_below_the_tolerance_is_a_turning_point():
+    """cos and sin of theta0 = 2*pi leave xdot = 1.5e-15 at x = 1: not a half-cycle."""
+    t = np.linspace(0.0, 2.0, 201)
+    omega = 2 * np.pi
+    terms = motion.damping_terms(0.0, 0.5, 0.0)
+    velocity = -omega * math.sin(2 * math.pi - 1e-16)
+    assert 0 < velocity < 1e-14
+    tiny = motion.integrate_accurate(1.0, velocity, omega, terms, t)
+    rest = motion.integrate_accurate(1.0, 0.0, omega, terms, t)
+    np.testing.assert_allclose(tiny.x, rest.x, atol=1e-12)

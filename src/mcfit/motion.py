@@ -354,6 +354,8 @@ def integrate_accurate(x0, v0, omega, terms, t, rtol=_ACCURATE_RTOL, atol=None):
     turning_times, turning_x = [], []
     t_end = float(t[-1])
     now, x, v = 0.0, float(x0), float(v0)
+    if abs(v) <= tolerances[1]:  # below the tolerance a start is a turning point
+        v = 0.0
     stop_time = math.inf
     evaluations = 0
     filled = 0  # t[:filled] are done
