@@ -109,3 +109,13 @@ def test_misfit_warning_threshold():
     assert misfit_warning(220.0, 100) and misfit_warning(3.0, 20)
     assert not misfit_warning(1.5, 100) and not misfit_warning(1.9, 10_000)
     assert not misfit_warning(3.0, 2)  # 1 + 5*sqrt(2/2) = 6
+
+
+def test_turning_points_and_results_may_not_share_stdout():
+    result = _run(FIG_20_19, "--turning-points-out", "-")
+    assert result.exit_code == 2 and "share stdout" in result.output
+
+
+def test_method_is_refused_with_pendulum():
+    result = _run(FIG_20_19, "--pendulum", "--method", "waveform")
+    assert result.exit_code == 2 and "--method is not available with --pendulum" in result.output

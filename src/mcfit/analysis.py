@@ -9,8 +9,8 @@ import numpy as np
 
 from mcfit.errors import FitError, McfitError, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
-from mcfit.fit.pendulum import RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning, \
-    names_degrees
+from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
+                                names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
 from mcfit.turning import TurningPoints, turning_points_of
 
@@ -101,14 +101,12 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
             else "no waveform fit for this model or domain")
         return replace(fit, method_reason=why) if fit.model != "power" else fit
     error = averaged_law_bias(record.t, turning, fit)
-    q_min = error.q_min if error.q_min and math.isfinite(error.q_min) else None
-    said = (f"the averaged law's bias is predicted at {error.largest:.2g} standard errors"
-            + (f" at Q down to {q_min:.3g} without the Coulomb term" if q_min else ""))
+    said = _predicted_bias(error, fit)
     if method == "auto" and error.largest <= LIMIT:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
-    waveform = fit_waveform(record.t, record.x, turning, fit, criterion=criterion,
-                            forced=model)
-    if method == "auto" and viscous_aicc(record.t, record.x, turning, fit) <= min(
+    x = _without_steady_line(record.t, record.x, turning.steady_line)
+    waveform = fit_waveform(record.t, x, turning, fit, criterion=criterion, forced=model)
+    if method == "auto" and viscous_aicc(record.t, x, turning, fit) <= min(
             c.aicc for c in waveform.candidates):
         return replace(fit, method_reason=f"{said}, but the waveform is a linear viscous "
                        "oscillator's, whose turning points follow the averaged law exactly")
@@ -120,8 +118,27 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
     return replace(waveform, method_reason=why)
 
 
-# The waveform fit is trusted only while its reduced chi-square stays below this and below
-# this many times the turning-point fit's (the prediction of bias assumes Eq. 20.55 holds).
+def _predicted_bias(error, fit):
+    q_min = error.q_min if error.q_min and math.isfinite(error.q_min) else None
+    coulomb = " without the Coulomb term" if fit.values.get("c") else ""
+    return (f"the averaged law's bias is predicted at {error.largest:.2g} standard errors"
+            + (f" at Q down to {q_min:.3g}{coulomb}" if q_min else ""))
+
+
+def _without_steady_line(t, x, line):
+    """The signal with the hum the turning-point search subtracted (if any) taken out."""
+    if line is None:
+        return x
+    from mcfit.hum import subtract_steady_line
+
+    finite = np.isfinite(x)
+    out = np.array(x, dtype=float)
+    out[finite] = subtract_steady_line(t[finite], x[finite], line)
+    return out
+
+
+# The waveform fit is trusted while its reduced chi-square stays below this many times the
+# larger of 1 and the turning-point fit's (the prediction of bias assumes Eq. 20.55 holds).
 MISFIT_LIMIT = 4.0
 
 
@@ -137,9 +154,9 @@ def describes_waveform(waveform, turning_point_fit) -> bool:
 
 def _misfit_warning(waveform):
     return (f"the equation of motion (Eq. 20.55) fits the waveform with reduced chi-square "
-            f"{waveform.reduced_chi_square:.3g}: the damping force has another form (a "
-            "viscous force, for example, whose turning points follow the averaged law "
-            "exactly at any Q); the turning-point fit is reported")
+            f"{waveform.reduced_chi_square:.3g}: the record holds something it does not "
+            "model (a damping force of another form, a disturbance, a second mode); the "
+            "turning-point fit is reported, biased by the amount predicted")
 
 
 def _fit_pendulum(turning, sigma, period, period_sigma, degrees, *, criterion="aicc",
@@ -172,7 +189,7 @@ def crop_record(record, start=None, end=None):
         keep &= record.t >= start
     if end is not None:
         keep &= record.t <= end
-    unit = "cycle" if record.domain == "cycle" else (record.time_unit or "s")
+    unit = "cycles" if record.domain == "cycle" else "s"
     low = f"{start:g} {unit}" if start is not None else "the start"
     high = f"{end:g} {unit}" if end is not None else "the end"
     if not np.any(keep):

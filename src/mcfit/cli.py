@@ -323,8 +323,10 @@ def _column(value):
               help="Also write every record's turning points (t, amplitude, sigma, used or "
                    "why not, fitted envelope) to this CSV file.")
 @click.option("--start", type=float, metavar="T",
-              help="Fit only from this time (or cycle number) on, e.g. after the release.")
-@click.option("--end", type=float, metavar="T", help="Fit only up to this time (or cycle).")
+              help="Fit only from this time in seconds (or cycle number) on, e.g. after the "
+                   "release.")
+@click.option("--end", type=float, metavar="T",
+              help="Fit only up to this time in seconds (or cycle number).")
 @click.option("--pendulum", is_flag=True,
               help="The signal is a pendulum's swing angle (radians): fit with the "
                    "large-swing geometry of sin(theta); coefficients keep their small-angle "
@@ -344,6 +346,12 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
         model = _parsed_model(model)
     if pendulum and bootstrap:
         raise UsageError("--bootstrap is not available with --pendulum yet.")
+    if pendulum and method != "auto":
+        raise UsageError("--method is not available with --pendulum: the pendulum's law is "
+                         "fitted to the turning points.")
+    if turning_points_out == "-" and output == "-":
+        raise UsageError("--turning-points-out - and the results would share stdout; give "
+                         "one of them a file name (-o FILE or --turning-points-out FILE.csv).")
     if pendulum and model == "power":
         raise UsageError("--model power is not available with --pendulum.")
     if start is not None and end is not None and not start < end:

@@ -41,11 +41,12 @@ class SteadyLine:
     coefficients: tuple[float, ...] = ()  # cos, sin per harmonic, about the record's middle
     removed: bool = False
     oscillation_amplitude: float = float("nan")
+    t_mid: float = 0.0  # the time the coefficients' phases refer to
 
     def note(self):
         ratio = self.frequency / self.oscillation_frequency
-        where = (f"frequency {self.frequency:.6g} per time unit (period {1 / self.frequency:.4g}, "
-                 f"{ratio:.3g} times the oscillation's)")
+        where = (f"frequency {self.frequency:.6g} per time unit ({ratio:.3g} times the "
+                 f"oscillation's; period {1 / self.frequency:.4g})")
         if not self.removed:
             return (f"two steady lines, neither decaying clearly: a possible hum at {where}, "
                     f"amplitude {self.amplitudes[0]:.3g}, is left in; the line at frequency "
@@ -93,14 +94,15 @@ def find_steady_line(t, x, periodogram, noise):
     coefficients = _fit(t, x, hum, harmonics)
     amplitudes = tuple(float(np.hypot(*pair)) for pair in coefficients.reshape(-1, 2))
     return SteadyLine(float(hum), float(oscillation), harmonics, amplitudes,
-                      tuple(float(c) for c in coefficients), removed=True)
+                      tuple(float(c) for c in coefficients), removed=True,
+                      t_mid=0.5 * float(t[0] + t[-1]))
 
 
 def subtract_steady_line(t, x, line):
     """x without the fitted line (a new array)."""
     coefficients = np.array(line.coefficients)
     out = np.array(x, dtype=np.float64)
-    t_mid = 0.5 * (t[0] + t[-1])
+    t_mid = line.t_mid
     for start in range(0, t.size, _BLOCK):
         block = slice(start, start + _BLOCK)
         out[block] -= _sinusoids(t[block] - t_mid, line.frequency, line.harmonics) @ coefficients

@@ -11,8 +11,9 @@ from mcfit import decay
 from mcfit.analysis import Analysis
 from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS
 
-__all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS",
-           "turning_points_header", "turning_points_rows", "to_json_dict", "to_json", "csv_header", "to_csv_row", "to_text"]
+__all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS", "csv_columns",
+           "turning_points_header", "turning_points_rows", "to_json_dict", "to_json",
+           "csv_header", "to_csv_row", "to_text"]
 
 CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", "b", "b_stderr",
                "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error",
@@ -204,19 +205,21 @@ def turning_points_rows(analysis: Analysis) -> str:
     turning, fit = analysis.turning, analysis.fit
     if turning is None:
         return ""
+    amplitude, sigma = list(turning.y), list(turning.sigma)
     envelope = [None] * len(turning.t)
-    y_fit = getattr(fit, "y_fit", None)
     used = [i for i, flag in enumerate(turning.used) if flag]
-    if y_fit is not None and len(y_fit) == len(used):
-        for i, value in zip(used, y_fit):
-            envelope[i] = float(value)
+    # The fit's own amplitudes where it converted them (a pendulum's peak angles).
+    for name, column in (("y", amplitude), ("sigma", sigma), ("y_fit", envelope)):
+        values = getattr(fit, name, None)
+        if values is not None and len(values) == len(used):
+            for i, value in zip(used, values):
+                column[i] = value
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
     for i in range(len(turning.t)):
         writer.writerow([_csv_cell(v) for v in (
-            analysis.source, float(turning.t[i]), float(turning.y[i]),
-            _number(turning.sigma[i]), bool(turning.used[i]),
-            turning.excluded_reason[i] or None, envelope[i])])
+            analysis.source, float(turning.t[i]), _number(amplitude[i]), _number(sigma[i]),
+            bool(turning.used[i]), turning.excluded_reason[i] or None, _number(envelope[i]))])
     return buffer.getvalue()
 
 

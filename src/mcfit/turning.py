@@ -129,6 +129,7 @@ class TurningPoints:
     gaps: tuple[tuple[float, float], ...] = ()
     domain: str = "time"
     notes: tuple[str, ...] = field(default=())
+    steady_line: object = None  # the hum subtracted before the search (mcfit.hum.SteadyLine)
 
     @property
     def count(self):
@@ -236,9 +237,11 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     dt = float(np.median(steps))
     gaps = _find_gaps(t, finite, tf, steps, dt)
     spectral_period, noise, periodogram = _spectrum(tf, xf, dt, steps)
+    removed = None
     if periodogram is not None:  # a hum far from the oscillation's frequency
         frequencies, power, _, energy, _ = periodogram
         line = find_steady_line(tf, xf, periodogram, noise if np.isfinite(noise) else 0.0)
+        removed = line if line is not None and line.removed else None
         if line is not None:
             notes.append(line.note())
             if line.removed:
@@ -411,7 +414,8 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         period_drift_sigma=drift_sigma,
         equilibrium=float(e0 + e1 * (t[0] - t_ref)), equilibrium_drift=float(e1),
         noise_sigma=float(noise_sigma), noise_floor=float(floor_level),
-        noise_floor_time=floor_time, gaps=tuple(gaps), domain=domain, notes=tuple(notes))
+        noise_floor_time=floor_time, gaps=tuple(gaps), domain=domain, notes=tuple(notes),
+        steady_line=removed)
 
 
 def _check_range(t, x, source):
