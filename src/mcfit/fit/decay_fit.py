@@ -17,7 +17,8 @@ from mcfit.fit.power import PowerLawFit, fit_power_law
 from mcfit.fit.problem import PARAMETERS, ScaledRecord
 from mcfit.fit.selection import LRT_ALPHA, Selection, select_model
 
-__all__ = ["DecayFit", "fit_decay", "MIN_POINTS", "tie_warning", "diagnose"]
+__all__ = ["DecayFit", "fit_decay", "MIN_POINTS", "tie_warning", "diagnose", "misfit_warning",
+           "no_decay_warning"]
 
 MIN_POINTS = 4
 # |correlation| above this between two kept parameters: the record hardly tells them apart.
@@ -257,7 +258,7 @@ def _reported(record, candidates, selection):
         q_bound = uncertainty.q_lower_bound(scaled, reported.values[0], omega,
                                             record.omega_sigma)
     if selection.model == NONE:
-        warnings.append(_no_decay_warning(float(t[-1] - t[0]),
+        warnings.append(no_decay_warning(float(t[-1] - t[0]),
                                           "s" if record.domain == "time" else "cycles", q_bound))
     if omega is not None and selection.model != NONE:
         q, q_stderr = uncertainty.q_with_stderr(t - t[0], values, errors.covariance,
@@ -321,7 +322,7 @@ def diagnose(terms, values, errors, weighted_residuals, converged, autocorrelati
     return warnings
 
 
-def _no_decay_warning(span, unit, q_bound):
+def no_decay_warning(span, unit, q_bound):
     bound = f" (Q > {q_bound:.2g} at 95 %)" if q_bound is not None else ""
     return (f"the amplitude does not decay over the {span:.4g} {unit} of the record{bound}: "
             "either the damping is too weak to show in it or this is not a free decay (a "

@@ -40,7 +40,8 @@ from scipy import integrate, optimize, special
 
 from mcfit.errors import FitError
 from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
-from mcfit.fit.decay_fit import MIN_POINTS, DecayFit, diagnose, tie_warning
+from mcfit.fit.decay_fit import (MIN_POINTS, DecayFit, diagnose, misfit_warning,
+                                 no_decay_warning, tie_warning)
 from mcfit.fit.models import CRITERIA, MODELS, NONE, POWER, REGIME_NAMES, TERMS, \
     parse_model, terms_of
 from mcfit.fit.problem import PARAMETERS
@@ -476,8 +477,8 @@ def _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selecti
     values = _physical(internal, span, scale)
     theta_fit, sensitivity = _amplitude_solution(tau, *internal)
     y_fit = theta_fit / scale
-    sigma_out = sigma * math.sqrt(reduced) if noise_from_residuals and math.isfinite(reduced) \
-        else sigma
+    sigma_out = (sigma * math.sqrt(reduced) if noise_from_residuals and math.isfinite(reduced)
+                 else sigma)
     period0, period0_sigma = _small_angle_period(t, theta_fit, signs, period, period_sigma)
     q = q_stderr = q_parts = q_summary = None
     if period0 is not None and selection.model != NONE:
@@ -487,7 +488,10 @@ def _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selecti
     warnings = (selection.warnings() + tie_warning(selection, y_fit)
                 + diagnose(selection.terms, values,
                             ParameterErrors(stderr, correlation, physical_covariance),
-                            (y_fit - y) / sigma, success))
+                            (y_fit - y) / sigma, success)
+                + ([] if noise_from_residuals else misfit_warning(reduced, dof))
+                + ([no_decay_warning(float(t[-1] - t[0]), "s", None)]
+                   if selection.model == NONE else []))
     omega = 2 * math.pi / period0 if period0 else None
     return PendulumFit(
         status="ok" if success else "error",
