@@ -15,8 +15,7 @@ from mcfit.fit.selection import LRT_ALPHA
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "crop_record", "failed_analysis",
-           "fit_turning_points",
-           "fit_by_method", "with_large_swing_warning"]
+           "fit_turning_points", "fit_by_method", "with_large_swing_warning"]
 
 # How the coefficients are fitted: "auto" takes the waveform fit only where the averaged
 # law's bias would be a noticeable part of the statistical error.

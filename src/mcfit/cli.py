@@ -570,7 +570,8 @@ Sections:
   throughput   records per second in batch, peak memory, start-up time
 
 The default quick grid runs in about two minutes; --full runs the whole grid
-(about an hour, most of it the methods section). Times are wall-clock on this machine; nothing is asserted.
+(about an hour, most of it the methods section). Times are wall-clock on this
+machine; nothing is asserted.
 
 \b
 Examples:

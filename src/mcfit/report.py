@@ -343,7 +343,8 @@ def to_text(analysis: Analysis) -> str:
     pendulum = data.get("pendulum")
     if pendulum is not None:
         period0 = pendulum["small_angle_period"]
-        period0_text = (f"; small-angle period {_with_error(period0, pendulum['small_angle_period_stderr'])} s"
+        period0_error = pendulum["small_angle_period_stderr"]
+        period0_text = (f"; small-angle period {_with_error(period0, period0_error)} s"
                         if period0 is not None else "")
         lines.append(f"  pendulum:        large-swing correction applied (angle in "
                      f"{pendulum['angle_unit']}{period0_text}); coefficients are small-angle "
