@@ -29,8 +29,33 @@ SCENES = {
 
 
 def simulate(name: str, options: str) -> None:
-    command = [sys.executable, "-m", "mcfit", "simulate", *options.split(), "-o", str(HERE / name)]
+    command = [sys.executable, "-m", "mcfit", "simulate", *options.split(), "-o",
+               str(HERE / name)]
     subprocess.run(command, check=True)
+
+
+# A PASCO Capstone export of five runs of a rotary pendulum (rad), the eddy-current magnet
+# moved closer each run (b grows), the bearing's friction c the same; runs end at
+# different times and are padded with empty cells.
+CAPSTONE_RUNS = [(0.03 + 0.02 * k, 40.0 - 5.0 * k) for k in range(5)]
+
+
+def capstone_runs(path: Path) -> None:
+    import tempfile
+
+    columns = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for k, (b, duration) in enumerate(CAPSTONE_RUNS, start=1):
+            name = str(Path(folder) / f"run{k}.csv")
+            simulate(name, f"--b {b} --c 0.004 --y0 0.8 --period 1.6 --duration {duration} "
+                           f"--rate 25 --noise 0.001 --seed {10 + k}")
+            run = pd.read_csv(name)
+            columns[f"Time (s) Run #{k}"] = run["t"].round(2)
+            columns[f"Angle, Ch 1+2 (rad) Run #{k}"] = run["x"].round(4)
+            columns[f"Angular Velocity, Ch 1+2 (rad/s) Run #{k}"] = np.gradient(
+                run["x"], run["t"]).round(3)
+    frame = pd.DataFrame({name: pd.Series(values) for name, values in columns.items()})
+    frame.to_csv(path, index=False)
 
 
 def main() -> None:
@@ -50,6 +75,7 @@ def main() -> None:
     with open(HERE / "fig20_20_peak_speed_cycles.csv", "w") as stream:
         stream.write("# peak speed per swing from a photogate, against cycle number n\n")
         table.to_csv(stream, index=False)
+    capstone_runs(HERE / "capstone_runs.csv")
 
 
 if __name__ == "__main__":

@@ -334,8 +334,9 @@ def test_each_job_formats_only_the_chosen_output(tmp_path, rng, output_format):
 
     record = str(_write_record(tmp_path / "run.csv", rng))
     options = batch.FitOptions(output_format=output_format)
-    [result] = batch.run_jobs([record], options, [None])
-    assert result.status == "ok"
+    [file_result] = batch.run_jobs([record], options, [None])
+    [result] = file_result.records
+    assert result.status == "ok" and file_result.summary == ""
     if output_format == "json":
         assert json.loads(result.output)["source"] == record
     elif output_format == "csv":

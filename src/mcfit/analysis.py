@@ -201,6 +201,11 @@ def crop_record(record, start=None, end=None):
     return replace(record, t=record.t[keep], x=record.x[keep], notes=record.notes + (note,))
 
 
+def _bound(value, default, record):
+    unit = "cycles" if record.domain == "cycle" else "s"
+    return default if value is None else f"{value:g} {unit}"
+
+
 def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=None,
                    pendulum=False, degrees=None, method="auto", start=None,
                    end=None) -> Analysis:
@@ -220,7 +225,11 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
         record = crop_record(record, start, end)
         turning = turning_points_of(record)
     except McfitError as error:
-        return failed_analysis(source, str(error), record=record)
+        message = str(error)
+        if (start, end) != (None, None) and not isinstance(error, UsageError):
+            message += (f" This is in the window from {_bound(start, 'the start', record)} to "
+                        f"{_bound(end, 'the end', record)} asked for: widen it.")
+        return failed_analysis(source, message, record=record)
     try:
         if degrees is None:
             degrees = names_degrees(getattr(record, "signal_column", None))

@@ -19,7 +19,8 @@ from pathlib import Path
 
 from mcfit.errors import InputError, McfitError, UsageError
 
-__all__ = ["FitOptions", "JobResult", "expand_inputs", "run_jobs", "plot_path_for"]
+__all__ = ["FitOptions", "JobResult", "FileResult", "expand_inputs", "run_jobs",
+           "plot_path_for"]
 
 # What a directory's records are called (any file named on the command line is read by
 # its content): text, gzip-compressed text, LabVIEW and logger files, spreadsheets.
@@ -52,6 +53,8 @@ class FitOptions:
     turning_points_out: bool = False  # also give each record's turning points as CSV rows
     start: float | None = None  # window of the record to fit (time or cycle)
     end: float | None = None
+    run: int | None = None  # of a file's runs side by side, the one to fit (None: all)
+    angle_from: tuple | None = None  # (x, y) columns of a tracked pendulum bob
 
 
 @dataclass(frozen=True)
@@ -68,6 +71,23 @@ class JobResult:
     output: str
     plot_error: str | None = None
     turning_points: str = ""  # CSV rows of the turning points, when asked for
+
+
+@dataclass(frozen=True)
+class FileResult:
+    """What one file produced: a result per record (one per run side by side, in file
+    order) and, for several runs in the text format, a summary over them."""
+
+    records: tuple[JobResult, ...]
+    summary: str = ""
+
+    @classmethod
+    def failed(cls, source, message, options):
+        from mcfit.analysis import failed_analysis
+
+        analysis = failed_analysis(_display_name(source), message)
+        return cls((JobResult(source=analysis.source, status=analysis.status,
+                              error=analysis.error, output=_format(analysis, options)),))
 
 
 def expand_inputs(arguments) -> list[str]:
@@ -123,24 +143,48 @@ def _job(argument):
         detail = detail if len(detail) <= 300 else detail[:297] + "..."
         message = (f"internal error while fitting {_display_name(source)}: "
                    f"{type(error).__name__}: {detail} (a bug in mcfit; please report it)")
-    from mcfit.analysis import failed_analysis
-
-    analysis = failed_analysis(_display_name(source), message)
-    return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
-                     output=_format(analysis, options))
+    return FileResult.failed(source, message, options)
 
 
 def _job_for(source, options, plot_path):
-    from mcfit.analysis import analyse_record, failed_analysis
-    from mcfit.records import read_record
+    from mcfit.records import read_records
 
+    try:
+        records = read_records(source, time_col=options.time_col,
+                               signal_col=options.signal_col, sheet=options.sheet,
+                               rate=options.rate, input=options.input, domain=options.domain,
+                               run=options.run, angle_from=options.angle_from)
+    except McfitError as error:
+        return FileResult.failed(source, " ".join(str(error).split()), options)
+    several = len(records) > 1
+    done = [_record_job(source, record, options,
+                        run_plot_path(plot_path, record.run) if several else plot_path)
+            for record in records]
+    summary = ""
+    if several and options.output_format == "text":
+        from mcfit.report import runs_summary
+
+        summary = runs_summary(_display_name(source), [analysis for analysis, _ in done])
+    return FileResult(tuple(result for _, result in done), summary)
+
+
+def run_plot_path(plot_path, run):
+    """The figure of one run of several: ``fig.png`` -> ``fig-run7.png``."""
+    if plot_path is None:
+        return None
+    path = Path(plot_path)
+    number = run.split()[-1]
+    return str(path.with_name(f"{path.stem}-run{number}{path.suffix}"))
+
+
+def _record_job(source, record, options, plot_path):
+    """(analysis, result) of one record read from ``source``."""
     import numpy as np
 
-    record = None
+    from mcfit.analysis import analyse_record, failed_analysis
+    from mcfit.report import turning_points_rows
+
     try:
-        record = read_record(source, time_col=options.time_col, signal_col=options.signal_col,
-                             sheet=options.sheet, rate=options.rate, input=options.input,
-                             domain=options.domain)
         analysis = analyse_record(record, criterion=options.criterion, model=options.model,
                                   bootstrap=options.bootstrap,
                                   rng=np.random.default_rng(options.seed),
@@ -148,22 +192,20 @@ def _job_for(source, options, plot_path):
                                   method=options.method, start=options.start,
                                   end=options.end)
     except McfitError as error:
-        analysis = failed_analysis(_display_name(source), " ".join(str(error).split()),
-                                   record=record)
+        analysis = failed_analysis(record.name, " ".join(str(error).split()), record=record)
     # Every row names its record as the user gave it, so scripts can match rows to files.
-    analysis = dataclasses.replace(analysis, source=_display_name(source))
+    name = _display_name(source) + (f"#{record.run}" if record.run else "")
+    analysis = dataclasses.replace(analysis, source=name)
     plot_error = None
     if plot_path is not None and analysis.status == "ok":
         try:
             _plot(analysis, plot_path)
         except (OSError, ValueError) as error:
             plot_error = f"cannot write plot {plot_path}: {error}"
-    from mcfit.report import turning_points_rows
-
     rows = turning_points_rows(analysis) if options.turning_points_out else ""
-    return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
-                     output=_format(analysis, options), plot_error=plot_error,
-                     turning_points=rows)
+    return analysis, JobResult(source=analysis.source, status=analysis.status,
+                               error=analysis.error, output=_format(analysis, options),
+                               plot_error=plot_error, turning_points=rows)
 
 
 def _format(analysis, options):
@@ -212,7 +254,7 @@ def _plot(analysis, path):
 
 
 def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
-    """Yield a :class:`JobResult` per source, in input order, each as soon as it is ready.
+    """Yield a :class:`FileResult` per source, in input order, each as soon as it is ready.
 
     With ``jobs`` > 1 the records are fitted by worker processes. A worker that dies (the
     out-of-memory killer, a crash in a library) costs only its record, reported as an error
@@ -361,8 +403,4 @@ def _lost(worker):
         cause = f"ended with exit code {code}"
     message = (f"the worker process fitting {_display_name(source)} {cause}; fit it again "
                "alone, with --jobs 1, or free some memory.")
-    from mcfit.analysis import failed_analysis
-
-    analysis = failed_analysis(_display_name(source), message)
-    return JobResult(source=analysis.source, status=analysis.status, error=analysis.error,
-                     output=_format(analysis, options))
+    return FileResult.failed(source, message, options)

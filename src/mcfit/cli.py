@@ -314,7 +314,8 @@ def _column(value):
 @click.option("-o", "--output", type=click.Path(allow_dash=True), default="-",
               help="Write results to this file (whole, via a temporary file); - for stdout.")
 @click.option("--plot", "plot_file", type=click.Path(dir_okay=False),
-              help="Report figure for a single record (.png, .pdf or .svg).")
+              help="Report figure for a single file (.png, .pdf or .svg); for a file of "
+                   "several runs, one per run, named like fig-run7.png.")
 @click.option("--plot-dir", type=click.Path(file_okay=False),
               help="Directory for one PNG report figure per record (batch).")
 @click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
@@ -327,6 +328,13 @@ def _column(value):
                    "release.")
 @click.option("--end", type=float, metavar="T",
               help="Fit only up to this time in seconds (or cycle number).")
+@click.option("--run", type=click.IntRange(min=1), metavar="N",
+              help="Of a file's runs side by side ('Run #N' columns, or repeated time and "
+                   "signal columns), fit only run N [default: every run, as a record of "
+                   "its own].")
+@click.option("--angle-from", metavar="X,Y",
+              help="Fit the swing angle atan2(x, -y) of a tracked pendulum bob from its x "
+                   "and y columns (names or 1-based indices; pivot at the origin).")
 @click.option("--pendulum", is_flag=True,
               help="The signal is a pendulum's swing angle (radians): fit with the "
                    "large-swing geometry of sin(theta); coefficients keep their small-angle "
@@ -336,7 +344,7 @@ def _column(value):
                    "or '°').")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
         bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs,
-        turning_points_out, start, end, pendulum, degrees):
+        turning_points_out, start, end, run, angle_from, pendulum, degrees):
     if jobs > 1:
         # Each worker fits small problems: BLAS threads would only compete for the cores.
         # Set before numpy is first imported (here and in the workers); user settings win.
@@ -368,7 +376,8 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
                    sheet=_column(sheet), rate=rate, input=input_kind, domain=domain,
                    criterion=criterion, model=model,
                    bootstrap=bootstrap, seed=seed, method=method, pendulum=pendulum,
-                   degrees=True if degrees else None, start=start, end=end,
+                   degrees=True if degrees else None, start=start, end=end, run=run,
+                   angle_from=_angle_columns(angle_from, signal_col),
                    turning_points_out=turning_points_out is not None)
     with _stop_signals_interrupt():
         try:
@@ -379,6 +388,20 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
             click.echo("\nInterrupted before any record was finished.", err=True)
             sys.exit(_exit_code_of(interruption))
     sys.exit(1 if failures else 0)
+
+
+def _angle_columns(text, signal_col):
+    """The (x, y) columns of --angle-from X,Y, or None."""
+    if text is None:
+        return None
+    parts = [part.strip() for part in text.split(",")]
+    if len(parts) != 2 or not all(parts):
+        raise UsageError(f"--angle-from {text!r}: give the bob's two columns as X,Y, e.g. "
+                         "--angle-from x,y or --angle-from 2,3.")
+    if signal_col is not None:
+        raise UsageError("give --angle-from X,Y or --signal-col, not both: the angle is the "
+                         "signal.")
+    return tuple(_column(part) for part in parts)
 
 
 def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
@@ -481,25 +504,14 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
             from mcfit.report import csv_header
 
             target.write(csv_header(bootstrap))
-        for result in results:
+        for file_result in results:
             done += 1
-            points.write(result.turning_points)
-            if result.status != "ok":
-                failures += 1
-                click.echo(f"Error: {printable(result.error)}", err=True)
-            if result.plot_error:
-                failures += 1
-                click.echo(f"Error: {printable(result.plot_error)}", err=True)
-            if output_format == "json":
-                target.write(result.output + "\n")
-            elif output_format == "csv":
-                target.write(result.output)
-            elif result.status == "ok" or target.temporary is not None:
-                # On stdout the Error line above (stderr) says all a failed record's report
-                # would; a report file (-o) keeps it, so that the file accounts for every
-                # record.
-                target.write(("\n" if written else "") + _printable_lines(result.output))
-                written += 1
+            for result in file_result.records:
+                failures += _write_result(result, target, points, output_format, written)
+                written += output_format == "text" and (result.status == "ok"
+                                                        or target.temporary is not None)
+            if file_result.summary:
+                target.write("\n" + file_result.summary)
             if progress is not None:
                 progress.update(1)
     except (KeyboardInterrupt, _Stopped) as interruption:
@@ -519,6 +531,27 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
             progress.render_finish()
     target.commit()
     points.commit()
+    return failures
+
+
+def _write_result(result, target, points, output_format, written):
+    """Write one record's output and errors; return how many failures it counts."""
+    failures = 0
+    points.write(result.turning_points)
+    if result.status != "ok":
+        failures += 1
+        click.echo(f"Error: {printable(result.error)}", err=True)
+    if result.plot_error:
+        failures += 1
+        click.echo(f"Error: {printable(result.plot_error)}", err=True)
+    if output_format == "json":
+        target.write(result.output + "\n")
+    elif output_format == "csv":
+        target.write(result.output)
+    elif result.status == "ok" or target.temporary is not None:
+        # On stdout the Error line above (stderr) says all a failed record's report would;
+        # a report file (-o) keeps it, so that the file accounts for every record.
+        target.write(("\n" if written else "") + _printable_lines(result.output))
     return failures
 
 

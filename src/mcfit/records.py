@@ -19,6 +19,7 @@ column that oscillates (velocity, acceleration, residual and fit columns come la
 
 from __future__ import annotations
 
+import csv
 import io
 import re
 import stat
@@ -32,7 +33,7 @@ import pandas as pd
 
 from mcfit.errors import InputError, UsageError
 
-__all__ = ["Record", "read_record", "TEXT_EXTENSIONS", "EXCEL_EXTENSIONS"]
+__all__ = ["Record", "read_record", "read_records", "TEXT_EXTENSIONS", "EXCEL_EXTENSIONS"]
 
 TEXT_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat")
 EXCEL_EXTENSIONS = (".xlsx", ".xlsm")
@@ -92,6 +93,9 @@ class Record:
         Every column of the file, in order.
     notes : tuple of str
         One sentence per decision or oddity, for the report.
+    run : str or None
+        Which of the file's runs side by side this is (``"Run 7"``); None for a file of
+        one run.
     """
 
     source: str
@@ -105,12 +109,18 @@ class Record:
     signal_unit: str | None = None
     columns: tuple[str, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    run: str | None = None
+
+    @property
+    def name(self) -> str:
+        """The source as a script names it: ``file.csv#Run 7`` for one run of several."""
+        return self.source if self.run is None else f"{self.source}#{self.run}"
 
     def to_dict(self):
         """Plain-Python summary (no arrays), ready for JSON."""
         finite = np.isfinite(self.t)
         return {
-            "source": self.source, "kind": self.kind, "domain": self.domain,
+            "source": self.source, "run": self.run, "kind": self.kind, "domain": self.domain,
             "time_column": self.time_column, "signal_column": self.signal_column,
             "time_unit": self.time_unit, "signal_unit": self.signal_unit,
             "columns": list(self.columns), "samples": int(self.t.size),
@@ -121,7 +131,8 @@ class Record:
 
 
 def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None,
-                input=None, domain=None):  # noqa: A002 - mirrors the --input option
+                input=None, domain=None, run=None,  # noqa: A002 - mirrors the --input option
+                angle_from=None):
     """Read a decay record from a file, ``"-"`` (stdin) or an open stream.
 
     Parameters
@@ -141,6 +152,12 @@ def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None
         Override the detected kind of record.
     domain : {"time", "cycle"}, optional
         Override the detected meaning of the time column (seconds or cycle number n).
+    run : int, optional
+        For a file of runs side by side, the run to read (its number, ``7`` for
+        ``Run #7``, or its place in the file); needed when the file holds several.
+    angle_from : (str or int, str or int), optional
+        Columns of a tracked pendulum bob's x and y (pivot at the origin): the signal is
+        the swing angle ``atan2(x, -y)`` in radians.
 
     Returns
     -------
@@ -153,25 +170,58 @@ def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None
     UsageError
         Contradictory or invalid options.
     """
-    if input is not None and input not in KINDS:
-        raise UsageError(f"input must be 'waveform' or 'turning-points', not {input!r}.")
-    if domain is not None and domain not in DOMAINS:
-        raise UsageError(f"domain must be 'time' or 'cycle', not {domain!r}.")
-    if rate is not None:
-        try:
-            rate = float(rate)
-        except (TypeError, ValueError):
-            raise UsageError(f"rate must be a number of samples per second, not {rate!r}.")
-        if not np.isfinite(rate) or rate <= 0:
-            raise UsageError(f"rate must be a positive number of samples per second, not {rate}.")
-        if time_col is not None:
-            raise UsageError("give either a time column or a sample rate, not both.")
+    records = read_records(source, time_col=time_col, signal_col=signal_col, sheet=sheet,
+                           rate=rate, input=input, domain=domain, run=run,
+                           angle_from=angle_from)
+    if len(records) > 1:
+        runs = ", ".join(r.run for r in records)
+        raise UsageError(f"{records[0].source} holds {len(records)} runs side by side "
+                         f"({runs}); pick one with run=N, or read them all with "
+                         "read_records.")
+    return records[0]
+
+
+def read_records(source, *, time_col=None, signal_col=None, sheet=None, rate=None,
+                 input=None, domain=None, run=None,  # noqa: A002
+                 angle_from=None):
+    """Every run of a file as a :class:`Record`, in file order; see :func:`read_record`.
+
+    Runs side by side are columns labelled ``Run #N`` (columns without a label, such as a
+    shared time, belong to every run) or repeated groups of columns that each start with a
+    time column. A file without them is one record with ``run`` None.
+    """
+    rate = _checked_options(input, domain, rate, time_col, angle_from, signal_col)
     table = _open_table(source, sheet)
     # The column heuristics (spans, slopes, steps) overflow to inf or NaN for values near
     # the float64 limit, which then fail their tests as they should; the turning-point
     # search rejects such values with a message.
     with np.errstate(over="ignore", invalid="ignore"):
-        return _build_record(table, time_col, signal_col, rate, input, domain)
+        runs = _chosen_runs(table, run, (time_col, signal_col) + tuple(angle_from or ()))
+        return [_build_record(table, time_col, signal_col, rate, input, domain,
+                              run=run_of_file, angle_from=angle_from)
+                for run_of_file in runs]
+
+
+def _checked_options(input, domain, rate, time_col, angle_from, signal_col):  # noqa: A002
+    """The rate as a float, after refusing contradictory or invalid options."""
+    if input is not None and input not in KINDS:
+        raise UsageError(f"input must be 'waveform' or 'turning-points', not {input!r}.")
+    if domain is not None and domain not in DOMAINS:
+        raise UsageError(f"domain must be 'time' or 'cycle', not {domain!r}.")
+    if angle_from is not None and (len(angle_from) != 2 or signal_col is not None):
+        raise UsageError("angle_from takes two columns, the bob's x and y, and replaces the "
+                         "signal column.")
+    if rate is None:
+        return None
+    try:
+        rate = float(rate)
+    except (TypeError, ValueError):
+        raise UsageError(f"rate must be a number of samples per second, not {rate!r}.")
+    if not np.isfinite(rate) or rate <= 0:
+        raise UsageError(f"rate must be a positive number of samples per second, not {rate}.")
+    if time_col is not None:
+        raise UsageError("give either a time column or a sample rate, not both.")
+    return rate
 
 
 # --------------------------------------------------------------------------- opening
@@ -349,7 +399,11 @@ def _decode_leniently(data, encoding, errors):
 def _split(line, sep):
     if sep is None:
         return line.split()
-    return [f.strip().strip('"').strip("'").strip() for f in line.split(sep)]
+    if '"' in line and len(sep) == 1:  # a quoted field may hold the separator
+        fields = next(csv.reader([line], delimiter=sep, skipinitialspace=True))
+    else:
+        fields = line.split(sep)
+    return [f.strip().strip('"').strip("'").strip() for f in fields]
 
 
 def _is_number(token):
@@ -1288,8 +1342,92 @@ def _is_time_name(label):
     return base in _TIME_NAMES or _RUN_SUFFIX.sub("", base) in _TIME_NAMES
 
 
-def _resolve_column(table, spec, role):
-    option = "--time-col" if role == "time" else "--signal-col"
+# --------------------------------------------------------------------------- runs
+
+_RUN_LABEL = re.compile(r"\brun\s*#?\s*(\d+)\s*$", re.IGNORECASE)
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One run of a file: its label ("Run 7", None for a file of one run), its number, the
+    0-based columns it may use, and how many runs the file holds."""
+
+    label: str | None
+    number: int
+    columns: tuple[int, ...]
+    count: int = 1
+
+
+def _plain_name(table, index):
+    """A column's name without the " (N)" that tells repeated header names apart."""
+    name = table.names[index]
+    marker = f" ({index + 1})"
+    if name.endswith(marker) and name[:-len(marker)] in table.names[:index]:
+        return name[:-len(marker)]
+    return name
+
+
+def _labelled_runs(table):
+    """Runs named by a "Run #N" suffix; unlabelled columns belong to every run."""
+    numbers = [_RUN_LABEL.search(name) for name in table.names]
+    found = list(dict.fromkeys(int(m.group(1)) for m in numbers if m))
+    shared = tuple(i for i, m in enumerate(numbers) if m is None)
+    return [(n, tuple(sorted(shared + tuple(i for i, m in enumerate(numbers)
+                                            if m and int(m.group(1)) == n))))
+            for n in found]
+
+
+def _repeated_groups(table):
+    """Runs as repeated groups of columns, each starting with a time column of one name."""
+    starts = [i for i in range(len(table.names)) if _is_time_name(_plain_name(table, i))]
+    if len(starts) < 2 or starts[0] != 0:
+        return []
+    bounds = starts + [len(table.names)]
+    groups = [tuple(range(a, b)) for a, b in zip(bounds, bounds[1:])]
+    shapes = {tuple(_plain_name(table, i) for i in group) for group in groups}
+    if len(shapes) != 1 or len(groups[0]) < 2:
+        return []
+    return [(k + 1, group) for k, group in enumerate(groups)]
+
+
+def _file_runs(table):
+    """The file's runs side by side, in file order (one run of all columns if none)."""
+    runs = _labelled_runs(table)
+    if len(runs) < 2:
+        runs = _repeated_groups(table)
+    if len(runs) < 2:
+        return [_Run(None, 1, tuple(range(len(table.names))))]
+    return [_Run(f"Run {number}", number, columns, len(runs)) for number, columns in runs]
+
+
+def _chosen_runs(table, wanted, column_specs):
+    """The runs to read: the one numbered ``wanted``, those holding a column named in
+    ``column_specs`` when it names one column of the file, else all."""
+    runs = _file_runs(table)
+    for spec in column_specs:
+        if spec is None or len(runs) == 1:
+            continue
+        try:
+            index = _resolve_column(table, spec, "signal")
+        except UsageError:  # a name every run holds: chosen in each run
+            continue
+        runs = [r for r in runs if index in r.columns] or runs
+    if wanted is None:
+        return runs
+    chosen = [r for r in runs if r.number == int(wanted)]
+    if not chosen and runs[0].label is None and int(wanted) == 1:
+        return runs
+    if not chosen:
+        held = ", ".join(str(r.number) for r in runs) if runs[0].label else "one run"
+        raise UsageError(f"run {wanted} not found in {table.name}; it holds {held}. "
+                         "Give one of those numbers to --run.")
+    return chosen
+
+
+def _resolve_column(table, spec, role, within=None):
+    """The 0-based column named or numbered by ``spec``; a name is looked for among the
+    columns ``within`` (default all), also without its unit and its run label."""
+    option = {"time": "--time-col", "signal": "--signal-col"}.get(role, "--angle-from")
     listing = ", ".join(table.names)
     if isinstance(spec, (int, np.integer)) or (isinstance(spec, str) and spec.strip().isdigit()
                                               and spec not in table.names):
@@ -1303,8 +1441,10 @@ def _resolve_column(table, spec, role):
     if spec in table.names:
         return table.names.index(spec)
     wanted = _base_name(spec)[0]
-    matches = [i for i, n in enumerate(table.names)
-               if n.strip().lower() == spec.strip().lower() or _base_name(n)[0] == wanted]
+    candidates = range(len(table.names)) if within is None else within
+    matches = [i for i in candidates if table.names[i].strip().lower() == spec.strip().lower()
+               or _base_name(table.names[i])[0] == wanted
+               or _RUN_SUFFIX.sub("", _base_name(_plain_name(table, i))[0]) == wanted]
     if len(matches) == 1:
         return matches[0]
     if len(matches) > 1:
@@ -1331,15 +1471,15 @@ def _oscillation_score(values):
     return crossings / v.size
 
 
-def _choose_time(table, rate):
+def _choose_time(table, rate, columns):
     sample = table.sample
-    named = [i for i, n in enumerate(table.names) if _is_time_name(n)]
+    named = [i for i in columns if _is_time_name(table.names[i])]
     # Elapsed seconds are the better time when the file also holds clock times.
     named = [i for i in named if i not in table.clock] + [i for i in named if i in table.clock]
-    cycle_named = [i for i, n in enumerate(table.names) if _base_name(n)[0] in _CYCLE_NAMES]
-    increasing = [i for i in range(sample.shape[1]) if _strictly_increasing(sample[i].values)]
+    cycle_named = [i for i in columns if _base_name(table.names[i])[0] in _CYCLE_NAMES]
+    increasing = [i for i in columns if _strictly_increasing(sample[i].values)]
     # Logger timestamps that repeat: a time column, but an unusable one.
-    repeating = [i for i in range(sample.shape[1]) if i not in increasing
+    repeating = [i for i in columns if i not in increasing
                  and _timestamp_problem(sample[i].values) is not None
                  and np.all(np.diff(sample[i].values[np.isfinite(sample[i].values)]) >= 0)]
     if rate is not None:
@@ -1352,7 +1492,7 @@ def _choose_time(table, rate):
     if repeating:
         return repeating[0], []
     # No increasing column: a turning-point table may list its times unsorted.
-    for i in range(sample.shape[1]):
+    for i in columns:
         v = sample[i].values
         v = v[np.isfinite(v)]
         if v.size >= 4 and np.unique(v).size == v.size and v.size < 5000:
@@ -1360,14 +1500,14 @@ def _choose_time(table, rate):
     return None, []
 
 
-def _choose_signal(table, time_index, ignored):
+def _choose_signal(table, time_index, ignored, columns):
     sample = table.sample
-    candidates = [i for i in range(sample.shape[1])
+    candidates = [i for i in columns
                   if i != time_index and i not in ignored and i not in table.clock
                   and np.count_nonzero(np.isfinite(sample[i].values)) >= 2
                   and np.ptp(sample[i].values[np.isfinite(sample[i].values)]) > 0]
     if not candidates:  # only constant columns: say so when they are read
-        rest = [i for i in range(sample.shape[1]) if i != time_index and i not in ignored
+        rest = [i for i in columns if i != time_index and i not in ignored
                 and np.isfinite(sample[i].values).any()]
         return (rest[0], []) if rest else (None, [])
     secondary = [i for i in candidates
@@ -1684,31 +1824,21 @@ def _line_within(t, half):
     return a + b * i
 
 
-def _build_record(table, time_col, signal_col, rate, kind, domain):
-    name = table.name
-    notes = list(table.notes)
-    present = ~np.isnan(table.sample.to_numpy(dtype=np.float64))
-    if table.sample.shape[0] == 0 or not present.any():
-        raise InputError(f"{name} has no numeric data rows. Give a file with a time and a "
-                         "signal column of numbers.")
-    numeric_rows = int(np.count_nonzero(present.any(axis=1)))
-    if numeric_rows < 2:
-        raise InputError(f"{name} has only {numeric_rows} data row. A decay record needs "
-                         "many samples over several cycles.")
-    if len(table.names) == 1 and time_col is None and rate is None and signal_col is None:
-        rows = " (its values written in one row)" if table.transposed else ""
-        raise InputError(f"{name} has one column{rows}, {_describe(table, 0)}, and no time "
-                         "column. Give the sample rate with --rate HZ, or add a time column.")
+def _chosen_columns(table, time_col, signal_col, rate, run, angle_from):
+    """(time index or None, signal index, other signal candidates, ignored time columns)
+    among the run's columns; for ``angle_from`` the signal is the bob's x column."""
+    name, columns = table.name, run.columns
     ignored = []
     if time_col is not None:
-        time_index = _resolve_column(table, time_col, "time")
+        time_index = _resolve_column(table, time_col, "time", columns)
     else:
-        time_index, ignored = _choose_time(table, rate)
+        time_index, ignored = _choose_time(table, rate, columns)
+    signal_col = angle_from[0] if angle_from is not None else signal_col
     if signal_col is not None:
-        signal_index = _resolve_column(table, signal_col, "signal")
-        others = []
+        role = "signal" if angle_from is None else "angle"
+        signal_index, others = _resolve_column(table, signal_col, role, columns), []
     else:
-        signal_index, others = _choose_signal(table, time_index, ignored)
+        signal_index, others = _choose_signal(table, time_index, ignored, columns)
         if signal_index is None:
             if table.sample.shape[1] == 1 or time_index is None:
                 raise InputError(f"no signal column found in {name} (columns: "
@@ -1723,11 +1853,52 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
     if time_index is None and rate is None:
         raise InputError(f"no time column found in {name} (no column increases steadily). "
                          "Name it with --time-col or give the sample rate with --rate HZ.")
+    return time_index, signal_index, others, ignored
+
+
+def _swing_angle(table, x, y_index, notes):
+    """The swing angle atan2(x, -y) of a bob tracked at (x, y), pivot at the origin; with
+    y growing downwards (image coordinates: the bob hangs at y > 0), atan2(x, y)."""
+    y = _read_columns(table, [y_index])[0][:x.size]
+    finite = np.isfinite(y)
+    downwards = finite.any() and np.median(y[finite]) > 0
+    angle = np.arctan2(x, y if downwards else -y)
+    formula = "atan2(x, y), y growing downwards" if downwards else "atan2(x, -y)"
+    notes.append(f"signal: the swing angle {formula}, in radians, y from "
+                 f"{_describe(table, y_index)} (pivot at the origin)")
+    return angle
+
+
+def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
+                  angle_from=None):
+    run = run or _Run(None, 1, tuple(range(len(table.names))))
+    name = table.name
+    notes = list(table.notes)
+    present = ~np.isnan(table.sample.to_numpy(dtype=np.float64))
+    if table.sample.shape[0] == 0 or not present.any():
+        raise InputError(f"{name} has no numeric data rows. Give a file with a time and a "
+                         "signal column of numbers.")
+    numeric_rows = int(np.count_nonzero(present.any(axis=1)))
+    if numeric_rows < 2:
+        raise InputError(f"{name} has only {numeric_rows} data row. A decay record needs "
+                         "many samples over several cycles.")
+    if len(table.names) == 1 and time_col is None and rate is None and signal_col is None:
+        rows = " (its values written in one row)" if table.transposed else ""
+        raise InputError(f"{name} has one column{rows}, {_describe(table, 0)}, and no time "
+                         "column. Give the sample rate with --rate HZ, or add a time column.")
+    time_index, signal_index, others, ignored = _chosen_columns(
+        table, time_col, signal_col, rate, run, angle_from)
+    if run.label is not None:
+        notes.append(f"{run.label}, one of {run.count} runs side by side in the file, fitted "
+                     f"as a record of its own (--run {run.number} picks it)")
 
     indices = [signal_index] if time_index is None else [time_index, signal_index]
     columns = _read_columns(table, indices)
     x = columns[-1]
     t = columns[0] if time_index is not None else None
+    if angle_from is not None:
+        x = _swing_angle(table, x, _resolve_column(table, angle_from[1], "angle",
+                                                   run.columns), notes)
 
     # Side-by-side runs: shorter runs are padded with empty cells at the end.
     present = np.isfinite(x) if t is None else np.isfinite(t)
@@ -1763,6 +1934,11 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
 
     time_unit = _base_name(table.names[time_index])[1] if time_index is not None else "s"
     signal_unit = _base_name(table.names[signal_index])[1]
+    signal_label = table.names[signal_index]
+    if angle_from is not None:
+        signal_unit = "rad"
+        y_label = table.names[_resolve_column(table, angle_from[1], "angle", run.columns)]
+        signal_label = f"angle from {signal_label}, {y_label}"
     time_label = table.names[time_index] if time_index is not None else None
 
     if rate is not None:
@@ -1828,7 +2004,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
     if time_index is not None and time_col is None:
         notes.append(f"time column: {_describe(table, time_index)} (chosen automatically; "
                      "use --time-col to change)")
-    if signal_col is None:
+    if signal_col is None and angle_from is None:
         other = ""
         if others:
             other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
@@ -1852,6 +2028,6 @@ def _build_record(table, time_col, signal_col, rate, kind, domain):
     t.setflags(write=False)
     x.setflags(write=False)
     return Record(source=name, t=t, x=x, kind=chosen_kind, domain=domain,
-                  time_column=time_label, signal_column=table.names[signal_index],
+                  time_column=time_label, signal_column=signal_label,
                   time_unit=time_unit, signal_unit=signal_unit,
-                  columns=tuple(table.names), notes=tuple(notes))
+                  columns=tuple(table.names), notes=tuple(notes), run=run.label)

@@ -6,6 +6,8 @@ import csv
 import io
 import json
 import math
+import statistics
+from collections import Counter
 
 from mcfit import decay
 from mcfit.analysis import Analysis
@@ -13,12 +15,12 @@ from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS
 
 __all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS", "csv_columns",
            "turning_points_header", "turning_points_rows", "to_json_dict", "to_json",
-           "csv_header", "to_csv_row", "to_text"]
+           "csv_header", "to_csv_row", "to_text", "runs_summary"]
 
 CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", "b", "b_stderr",
                "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error",
                "q_initial_stderr", "q_final_stderr", "domain", "units", "method", "resolved",
-               "reduced_chi_square", "warnings")
+               "reduced_chi_square", "warnings", "run")
 # Appended with --bootstrap: the 95 % interval of each parameter and of Q.
 BOOTSTRAP_CSV_COLUMNS = tuple(f"{k}_boot_{end}" for k in ("y0", "a", "b", "c", "q_initial")
                               for end in ("low", "high"))
@@ -73,6 +75,7 @@ def _params_per_cycle(analysis: Analysis):
 def to_json_dict(analysis: Analysis) -> dict:
     """The machine-readable contract: keys may be added, never renamed."""
     out = {"source": analysis.source, "status": analysis.status, "error": analysis.error}
+    out["run"] = getattr(analysis.record, "run", None)  # "Run 7" of a file of several runs
     record, turning, fit = analysis.record, analysis.turning, analysis.fit
     out["domain"] = getattr(record, "domain", None)
     out["turning_points"] = turning.count if turning is not None else 0
@@ -176,7 +179,7 @@ def to_csv_row(analysis: Analysis, bootstrap=False) -> str:
            "domain": data.get("domain"), "units": data.get("params_units"),
            "method": data.get("method"), "resolved": data.get("resolved"),
            "reduced_chi_square": (data.get("fit") or {}).get("reduced_chi_square"),
-           "warnings": "; ".join(data.get("warnings") or ()) or None}
+           "warnings": "; ".join(data.get("warnings") or ()) or None, "run": data.get("run")}
     for k in ("y0", "a", "b", "c"):
         row[k] = (params.get(k) or {}).get("value")
         row[f"{k}_stderr"] = (params.get(k) or {}).get("stderr")
@@ -377,3 +380,39 @@ def to_text(analysis: Analysis) -> str:
     for warning in analysis.warnings:
         lines.append(f"  warning: {warning}")
     return "\n".join(lines) + "\n"
+
+
+def runs_summary(source: str, analyses) -> str:
+    """Mean and spread of each coefficient and of Q over the fitted runs of one file, with
+    the typical stderr of one run: a spread well above it is a difference between runs.
+    A term left out of a run's model counts as 0 there."""
+    fitted = [a for a in analyses if a.status == "ok" and a.fit is not None]
+    lines = [f"runs of {source}: {len(fitted)} of {len(analyses)} fitted"]
+    if not fitted:
+        return lines[0] + "\n"
+    models = Counter(a.fit.model for a in fitted)
+    unit = _params_in_time_units(fitted[0])[2]
+    lines[0] += (f"; models {', '.join(f'{m} in {n}' for m, n in models.most_common())}; "
+                 f"mean +- sd over runs (sem; median stderr of a run), {unit}:")
+    columns = {k: [_law_values(a.fit) for a in fitted] for k in ("y0",) + TERMS}
+    for key, pairs in columns.items():
+        lines.append(_spread_line(key, [v[key] for v, _ in pairs], [e[key] for _, e in pairs]))
+    q = [(a.fit.q_summary or {}) for a in fitted]
+    lines.append(_spread_line("Q initial", [d.get("initial") for d in q],
+                              [d.get("initial_stderr") for d in q]))
+    return "\n".join(lines) + "\n"
+
+
+def _spread_line(name, values, errors):
+    values = [v for v in values if v is not None and math.isfinite(v)]
+    errors = [e for e in errors if e is not None and math.isfinite(e)]
+    if not values:
+        return f"  {name:<10} -"
+    if not any(values):
+        return f"  {name:<10} 0 in every run (not detected)"
+    mean = statistics.fmean(values)
+    sd = statistics.stdev(values) if len(values) > 1 else float("nan")
+    sem = sd / math.sqrt(len(values))
+    typical = f"{statistics.median(errors):.2g}" if errors else "-"
+    return (f"  {name:<10} {mean:.6g} +- {sd:.2g} (sem {sem:.2g}; run stderr {typical}; "
+            f"{len(values)} runs)")
