@@ -150,3 +150,18 @@ def test_auto_keeps_the_turning_points_of_a_viscous_oscillator():
     assert fit.method == "turning-points" and fit.model == "b"
     assert "linear viscous oscillator" in fit.method_reason
     assert abs(fit.values["b"] - beta) < 3 * fit.stderr["b"]
+
+
+def test_a_turning_point_misfit_does_not_hide_the_averaged_laws_bias():
+    """Q = 5, 6 s ending before the noise: the turning-point fit misfits (reduced
+    chi-square in the hundreds) and its errors, scaled by that misfit, once made a
+    bias of 7 noise standard errors look like 0.3; auto kept b = 0.61 +- 0.02."""
+    truth = {"a": 0.0, "b": 0.6, "c": 0.0}
+    t, x = simulate_record(y0=1.0, period=1.0, duration=6.0, rate=200.0, noise=1e-4,
+                           rng=np.random.default_rng(3), **truth)
+    record = Record(source="q5", t=t, x=x)
+    fit = analyse_record(record).fit
+    points = analyse_record(record, method="turning-points").fit
+    assert points.reduced_chi_square > 50
+    assert fit.method == "waveform" and fit.model == "b"
+    assert abs(fit.values["b"] - truth["b"]) < 3 * fit.stderr["b"]

@@ -45,12 +45,22 @@ def averaged_law_bias(t, turning, fit) -> ModelError:
     q_min = _smallest_rate_q(fit)
     if not terms or q_min is None or any(not fit.stderr[k] for k in terms):
         return ModelError({}, 0.0, q_min, "screen")
+    noise_stderr = _noise_stderr(fit)
     relative = SCREEN_CONSTANT / q_min**2
-    z = {k: relative * fit.values[k] / fit.stderr[k] for k in terms}
+    z = {k: relative * fit.values[k] / noise_stderr[k] for k in terms}
     if max(z.values()) <= LIMIT / 3:
         return ModelError(z, max(z.values()), q_min, "screen")
-    z = _chain_bias(t, turning, fit)
+    z = _chain_bias(t, turning, fit, noise_stderr)
     return ModelError(z, max(map(abs, z.values()), default=0.0), q_min, "chain")
+
+
+def _noise_stderr(fit):
+    """The standard errors the noise alone gives: a misfit (reduced chi-square above 1,
+    by which the reported errors are scaled) must not hide the averaged law's bias, which
+    may be its very cause."""
+    reduced = fit.reduced_chi_square
+    scale = math.sqrt(reduced) if math.isfinite(reduced) and reduced > 1 else 1.0
+    return {k: fit.stderr[k] / scale for k in fit.selection.terms}
 
 
 def _smallest_rate_q(fit):
@@ -66,7 +76,7 @@ def _smallest_rate_q(fit):
     return fit.omega / (2.0 * rate) if rate > 0 else math.inf
 
 
-def _chain_bias(t, turning, fit):
+def _chain_bias(t, turning, fit, noise_stderr):
     from mcfit.analysis import fit_turning_points  # noqa: PLC0415 (import cycle)
     from mcfit.errors import McfitError
     from mcfit.turning import find_turning_points
@@ -83,4 +93,4 @@ def _chain_bias(t, turning, fit):
         again = fit_turning_points(find_turning_points(times, x), model=fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
-    return {k: (again.values[k] - v[k]) / fit.stderr[k] for k in fit.selection.terms}
+    return {k: (again.values[k] - v[k]) / noise_stderr[k] for k in fit.selection.terms}
