@@ -1074,23 +1074,44 @@ def _surely_plain(content, tail_content):
         return False
     sep, decimal = _sniff_separator([line for _, line in content[:50]])
     decimal_comma = decimal == ","
-    widths = set()
-    for _, line in content[1:200] + content[-20:] + tail_content:
-        kind, fields = _classify_line(line, sep, decimal_comma)
-        if kind != "num":
+    lines = [line for _, line in content[1:200] + content[-20:] + tail_content]
+    width = None if decimal_comma else _plain_width(lines, sep)
+    plain = width is not None
+    if not plain:
+        widths = set()
+        for line in lines:
+            kind, fields = _classify_line(line, sep, decimal_comma)
+            if kind != "num":
+                return False
+            widths.add(len(fields))
+        if len(widths) != 1:
             return False
-        widths.add(len(fields))
-    if len(widths) != 1:
-        return False
-    width = widths.pop()
+        width = widths.pop()
     if sep == "," and width == 2 and _zero_padded_fractions(content[:200]):
         return False
     kind, fields = _classify_line(content[0][1], sep, decimal_comma)
     if kind == "rule" or (kind == "text" and len(_header_fields(content[0][1], sep, width))
                           != width):
         return False
+    if plain:  # no D exponents nor clock times: the expression admits neither
+        return True
     return not any(_FORTRAN_EXPONENT.match(f) or _CLOCK.match(f) or _ISO_DATE_TIME.match(f)
                    for _, line in content[1:50] for f in _line_fields(line, sep))
+
+
+_PLAIN_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+
+
+def _plain_width(lines, sep):
+    """The number of fields when every line is plain numbers with decimal points, split
+    by ``sep`` (None: whitespace) alike, else None: one regular expression a line, the
+    common case at a tenth of the cost of classifying each field."""
+    if not lines:
+        return None
+    between = r"\s+" if sep is None else r"\s*" + re.escape(sep) + r"\s*"
+    width = len(_split(lines[0], sep))
+    row = re.compile(_PLAIN_NUMBER + f"(?:{between}{_PLAIN_NUMBER}){{{width - 1}}}")
+    return width if all(row.fullmatch(line) for line in lines) else None
 
 
 def _header_fields(line, sep, width):
