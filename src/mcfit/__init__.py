@@ -11,17 +11,22 @@ import importlib
 __version__ = "0.1.0"
 
 _PUBLIC = {
+    "analyse": "mcfit.api", "analyse_file": "mcfit.api", "analyse_files": "mcfit.api",
     "amplitude": "mcfit.decay", "amplitude_jacobian": "mcfit.decay",
     "stop_time": "mcfit.decay", "quality_factor": "mcfit.decay",
     "quality_parts": "mcfit.decay", "power_law_amplitude": "mcfit.decay",
     "fit_decay": "mcfit.fit", "DecayFit": "mcfit.fit",
-    "read_record": "mcfit.records", "Record": "mcfit.records",
+    "read_record": "mcfit.records", "read_records": "mcfit.records", "Record": "mcfit.record",
     "find_turning_points": "mcfit.turning", "TurningPoints": "mcfit.turning",
     "analyse_record": "mcfit.analysis", "Analysis": "mcfit.analysis",
     "simulate_record": "mcfit.motion",
     "McfitError": "mcfit.errors",
 }
 __all__ = sorted(_PUBLIC) + ["__version__"]
+
+
+def __dir__():
+    return __all__
 
 
 def __getattr__(name):

@@ -40,6 +40,64 @@ class Analysis:
             found += list(self.fit.warnings)
         return tuple(found)
 
+    def summary(self) -> dict:
+        """The results as plain Python objects: exactly one line of ``--format json``."""
+        from mcfit.report import to_json_dict
+
+        return to_json_dict(self)
+
+    def report(self) -> str:
+        """The text report, as ``mcfit FILE`` prints it."""
+        from mcfit.report import to_text
+
+        return to_text(self)
+
+    @property
+    def turning_points(self):
+        """The turning points as a pandas DataFrame: t, amplitude, sigma, used, why not
+        (``excluded_reason``) and the fitted envelope, as ``--turning-points-out`` writes."""
+        import pandas as pd
+
+        from mcfit.report import TURNING_POINT_COLUMNS, turning_points_table
+
+        table = pd.DataFrame(turning_points_table(self), columns=TURNING_POINT_COLUMNS)
+        return table.drop(columns="source").astype({"amplitude": float, "sigma": float,
+                                                    "envelope": float})
+
+    def figure(self, title=None):
+        """The report figure (a matplotlib Figure; nothing is shown or saved)."""
+        from mcfit.plots import record_view, report_figure
+
+        self._check_fitted()
+        return report_figure(record_view(self, title or self.source), self.fit)
+
+    def plot(self, ax=None):
+        """The record, its turning points and the fitted envelope on ``ax`` (a new figure's
+        axes when None); returns the axes."""
+        from mcfit.plots import draw_record, record_view
+
+        self._check_fitted()
+        if ax is None:
+            from matplotlib.figure import Figure
+
+            ax = Figure(figsize=(7, 4), layout="constrained").add_subplot()
+        draw_record(ax, record_view(self, self.source), self.fit)
+        return ax
+
+    def _check_fitted(self):
+        if self.status != "ok" or self.fit is None:
+            raise FitError(f"{self.source} was not fitted: {self.error}")
+
+    def __repr__(self):
+        if self.status != "ok" or self.fit is None:
+            return f"Analysis(source={self.source!r}, status={self.status!r}, error={self.error!r})"
+        values = self.fit.values
+        terms = ", ".join(f"{k}={values.get(k, 0.0):.4g}" for k in ("a", "b", "c"))
+        q = (self.fit.q_summary or {}).get("initial")
+        q_text = f", Q={q:.4g}" if q is not None else ""
+        return (f"Analysis(source={self.source!r}, model={self.fit.model!r}, {terms}"
+                f"{q_text})")
+
 
 def failed_analysis(source: str, message: str, record=None, turning=None) -> Analysis:
     """An analysis that ended in an expected failure, carrying the one-line message."""

@@ -230,27 +230,10 @@ def _figure_title(source: str, longest: int = 60) -> str:
 
 
 def _plot(analysis, path):
-    import numpy as np
+    from mcfit.plots import record_view, report_figure, save_figure
 
-    from mcfit.plots import RecordView, report_figure, save_figure
-
-    record, turning, fit = analysis.record, analysis.turning, analysis.fit
-    if record.kind == "waveform":
-        t, x = record.t, record.x
-        equilibrium = turning.equilibrium + turning.equilibrium_drift * (t - t[0])
-        turning_x = (turning.equilibrium + turning.equilibrium_drift * (turning.t - t[0])
-                     + turning.sign * turning.y)
-    else:
-        t = x = equilibrium = None
-        turning_x = turning.y
-    time_label = ("cycle number n" if record.domain == "cycle"
-                  else f"time ({record.time_unit or 's'})")
-    signal_label = record.signal_unit or record.signal_column or "signal"
-    view = RecordView(title=_figure_title(analysis.source), t=t, x=x, equilibrium=equilibrium,
-                      turning_t=np.asarray(turning.t), turning_x=np.asarray(turning_x),
-                      used=np.asarray(turning.used), time_label=time_label,
-                      signal_label=signal_label, signal_unit=record.signal_unit or "U")
-    save_figure(report_figure(view, fit), path)
+    view = record_view(analysis, _figure_title(analysis.source))
+    save_figure(report_figure(view, analysis.fit), path)
 
 
 def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):

@@ -307,7 +307,7 @@ def _fixed_step(scene: IntegratorScene, method, steps_per_period):
     rate = GRID_SAMPLES_PER_PERIOD / scene.period
     return motion.simulate_record(scene.a, scene.b, scene.c, scene.y0, scene.period,
                                   scene.duration, rate, method=method,
-                                  dt=scene.period / steps_per_period)[1]
+                                  dt=scene.period / steps_per_period).x
 
 
 def _scene_work_points(scene: IntegratorScene, config: BenchConfig, reference):

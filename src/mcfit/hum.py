@@ -160,8 +160,11 @@ def _steadiness(t, x, f, span, noise):
     (first, gain1), (last, gain3) = thirds
     sigma = noise
     first, last = max(first, sigma * gain1, 1e-300), max(last, sigma * gain3, 1e-300)
-    log_ratio = np.log(last / first)
-    spread = 4.0 * np.hypot(sigma * gain1 / first, sigma * gain3 / last)
+    with np.errstate(over="ignore"):
+        log_ratio = np.log(last / first)
+        spread = 4.0 * np.hypot(sigma * gain1 / first, sigma * gain3 / last)
+    if not (np.isfinite(log_ratio) and np.isfinite(spread)):  # lost in the noise
+        return False, False
     return bool(abs(log_ratio) < _STEADY + spread), bool(log_ratio < -(_DECAYS + spread))
 
 

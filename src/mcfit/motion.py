@@ -549,15 +549,15 @@ def simulate_record(a, b, c, y0, period, duration, rate, method="auto", dt=None,
         Constant added to x (U).
     drift : float, optional
         Linear drift added to x (U/s).
-    rng : numpy.random.Generator, optional
-        Source of the noise; a fresh unseeded one when omitted.
+    rng : numpy.random.Generator or int, optional
+        Source of the noise, or its seed; a fresh unseeded one when omitted.
 
     Returns
     -------
-    t : ndarray, shape (n,)
-        ``arange(n)/rate`` (s), ``n = floor(duration*rate) + 1``.
-    x : ndarray, shape (n,)
-        Displacement (U).
+    mcfit.record.Record
+        ``t = arange(n)/rate`` (s), ``n = floor(duration*rate) + 1``, and ``x`` the
+        displacement (U); it unpacks as ``t, x = simulate_record(...)`` and
+        :func:`mcfit.analyse` takes it as it is.
     """
     for name, value in (("y0", y0), ("period", period), ("rate", rate)):
         _check_positive(name, value)
@@ -592,6 +592,10 @@ def simulate_record(a, b, c, y0, period, duration, rate, method="auto", dt=None,
         x = _resample_fixed_step(t_steps, x_steps, v_steps, t, step, rate, method)
     x = x + offset + drift * t
     if noise > 0:
-        rng = np.random.default_rng() if rng is None else rng
-        x = x + rng.normal(0.0, noise, size=n)
-    return t, x
+        x = x + np.random.default_rng(rng).normal(0.0, noise, size=n)
+    from mcfit.record import Record  # noqa: PLC0415 - numpy only, kept off the import path
+
+    note = (f"simulated by the {method} method: a = {a:g}, b = {b:g}, c = {c:g}, "
+            f"y0 = {y0:g}, period {period:g} s, noise {noise:g}")
+    return Record(source="<simulated>", t=t, x=x, time_column="t", signal_column="x",
+                  time_unit="s", notes=(note,))

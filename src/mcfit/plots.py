@@ -17,7 +17,7 @@ from mcfit import decay
 from mcfit.files import replace_atomically, temporary_beside
 from mcfit.fit import NONE, POWER, REGIME_NAMES, DecayFit, PowerLawFit
 
-__all__ = ["RecordView", "report_figure", "save_figure"]
+__all__ = ["RecordView", "record_view", "report_figure", "draw_record", "save_figure"]
 
 _SINGLE_STYLE = {"a": ("tab:orange", "fluid only (a)"), "b": ("tab:green", "hysteretic only (b)"),
                  "c": ("tab:purple", "Coulomb only (c)")}
@@ -46,6 +46,26 @@ class RecordView:
     signal_unit: str = "U"  # the signal's unit, for the coefficients' units
 
 
+def record_view(analysis, title: str) -> RecordView:
+    """What the figure shows of a fitted :class:`mcfit.analysis.Analysis`'s record."""
+    record, turning = analysis.record, analysis.turning
+    if record.kind == "waveform":
+        t, x = record.t, record.x
+        equilibrium = turning.equilibrium + turning.equilibrium_drift * (t - t[0])
+        turning_x = (turning.equilibrium + turning.equilibrium_drift * (turning.t - t[0])
+                     + turning.sign * turning.y)
+    else:
+        t = x = equilibrium = None
+        turning_x = turning.y
+    time_label = ("cycle number n" if record.domain == "cycle"
+                  else f"time ({record.time_unit or 's'})")
+    return RecordView(title=title, t=t, x=x, equilibrium=equilibrium,
+                      turning_t=np.asarray(turning.t), turning_x=np.asarray(turning_x),
+                      used=np.asarray(turning.used), time_label=time_label,
+                      signal_label=record.signal_unit or record.signal_column or "signal",
+                      signal_unit=record.signal_unit or "U")
+
+
 def report_figure(view: RecordView, fit: DecayFit) -> Figure:
     """Four panels: record, amplitudes (+ residuals), Q(t) with parts, rate against amplitude."""
     figure = Figure(figsize=(12, 9.5), layout="constrained")
@@ -55,7 +75,7 @@ def report_figure(view: RecordView, fit: DecayFit) -> Figure:
     axes_residual = figure.add_subplot(grid[1, 1], sharex=axes_amplitude)
     axes_q = figure.add_subplot(grid[2, 0])
     axes_rate = figure.add_subplot(grid[2, 1])
-    _draw_record(axes_record, view, fit)
+    draw_record(axes_record, view, fit)
     _draw_amplitudes(axes_amplitude, axes_residual, view, fit)
     _draw_q(axes_q, view, fit)
     _draw_rate(axes_rate, view, fit)
@@ -105,7 +125,8 @@ def _summary_text(fit: DecayFit | PowerLawFit, signal_unit: str) -> str:
     return "\n".join(lines)
 
 
-def _draw_record(axes, view, fit):
+def draw_record(axes, view, fit):
+    """The record, its turning points (used and left out) and the fitted envelope."""
     unit_label = view.time_label
     if view.t is not None:
         axes.plot(view.t, view.x, color="0.55", lw=0.6, label="record")

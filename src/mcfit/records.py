@@ -25,13 +25,14 @@ import re
 import stat
 import sys
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from mcfit.errors import InputError, UsageError
+from mcfit.record import Record, detect_kind
 
 __all__ = ["Record", "read_record", "read_records", "TEXT_EXTENSIONS", "EXCEL_EXTENSIONS"]
 
@@ -67,67 +68,6 @@ _CONTROL_CHARACTER = re.compile("[\x00-\x08\x0e-\x1f\x7f-\x9f]")
 _NOT_CONTROL_BYTES = bytes(b for b in range(128) if not _CONTROL_CHARACTER.match(chr(b)))
 _COMMA_DECIMAL = re.compile(r"^[+-]?\d*,\d+([eE][+-]?\d+)?$")
 _UNIT = re.compile(r"^(.*?)\s*[\(\[]\s*([^\)\]]*)\s*[\)\]]\s*$")
-
-
-@dataclass(frozen=True, eq=False)
-class Record:
-    """A decay record as read from a file: plain arrays plus what was decided on the way.
-
-    Attributes
-    ----------
-    source : str
-        File name as given (``"<stdin>"`` for ``-`` or a stream).
-    t : ndarray, shape (n,)
-        Time (in ``time_unit``, seconds unless the header says otherwise) or cycle number
-        (``domain == "cycle"``). Increasing for waveforms; turning-point tables are sorted.
-    x : ndarray, shape (n,)
-        Signal (waveform) or turning-point values (signed or not); NaN marks a gap.
-    kind : {"waveform", "turning-points"}
-    domain : {"time", "cycle"}
-    time_column, signal_column : str or None
-        Column names as in the file (``"column 2"`` without a header); ``time_column`` is
-        None when the time was built from ``rate``.
-    time_unit, signal_unit : str or None
-        Units read from headers such as ``time (s)``.
-    columns : tuple of str
-        Every column of the file, in order.
-    notes : tuple of str
-        One sentence per decision or oddity, for the report.
-    run : str or None
-        Which of the file's runs side by side this is (``"Run 7"``); None for a file of
-        one run.
-    """
-
-    source: str
-    t: np.ndarray
-    x: np.ndarray
-    kind: str = "waveform"
-    domain: str = "time"
-    time_column: str | None = None
-    signal_column: str | None = None
-    time_unit: str | None = None
-    signal_unit: str | None = None
-    columns: tuple[str, ...] = ()
-    notes: tuple[str, ...] = field(default=())
-    run: str | None = None
-
-    @property
-    def name(self) -> str:
-        """The source as a script names it: ``file.csv#Run 7`` for one run of several."""
-        return self.source if self.run is None else f"{self.source}#{self.run}"
-
-    def to_dict(self):
-        """Plain-Python summary (no arrays), ready for JSON."""
-        finite = np.isfinite(self.t)
-        return {
-            "source": self.source, "run": self.run, "kind": self.kind, "domain": self.domain,
-            "time_column": self.time_column, "signal_column": self.signal_column,
-            "time_unit": self.time_unit, "signal_unit": self.signal_unit,
-            "columns": list(self.columns), "samples": int(self.t.size),
-            "t_start": float(self.t[finite][0]) if finite.any() else None,
-            "t_end": float(self.t[finite][-1]) if finite.any() else None,
-            "notes": list(self.notes),
-        }
 
 
 def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None,
@@ -1546,23 +1486,6 @@ def _describe(table, index):
     return f"'{label}' (column {index + 1})" if not label.startswith("column ") else label
 
 
-def _detect_kind(t, x):
-    """'turning-points' for a table of extrema or amplitudes, else 'waveform'."""
-    finite = np.isfinite(t) & np.isfinite(x)
-    t, x = t[finite], x[finite]
-    if x.size < 3 or x.size > 5000:
-        return "waveform"
-    order = np.argsort(t, kind="stable")
-    v = x[order]
-    if np.all(v >= 0) or np.all(v <= 0):
-        magnitude = np.abs(v)
-        decreasing = np.count_nonzero(np.diff(magnitude) < 0) / (v.size - 1)
-        return "turning-points" if decreasing >= 0.65 else "waveform"
-    centred = v - np.median(v)
-    alternating = np.count_nonzero(np.diff(np.sign(centred)) != 0) / (v.size - 1)
-    return "turning-points" if alternating >= 0.9 else "waveform"
-
-
 def _read_columns(table, indices):
     if table.complete:  # already parsed, as floats
         return [table.sample[index].to_numpy(dtype=np.float64, copy=False) for index in indices]
@@ -1974,7 +1897,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         t = np.arange(x.size, dtype=np.float64) / rate
         detected_kind = "waveform"
     else:
-        detected_kind = _detect_kind(t, x)
+        detected_kind = detect_kind(t, x)
     chosen_kind = kind or detected_kind
     if kind is None and detected_kind == "turning-points":
         notes.append("read as a table of turning points (override with --input waveform)")

@@ -14,8 +14,8 @@ from mcfit.analysis import Analysis
 from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS
 
 __all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS", "csv_columns",
-           "turning_points_header", "turning_points_rows", "to_json_dict", "to_json",
-           "csv_header", "to_csv_row", "to_text", "runs_summary"]
+           "turning_points_header", "turning_points_rows", "turning_points_table",
+           "to_json_dict", "to_json", "csv_header", "to_csv_row", "to_text", "runs_summary"]
 
 CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", "b", "b_stderr",
                "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error",
@@ -202,12 +202,12 @@ def turning_points_header() -> str:
     return ",".join(TURNING_POINT_COLUMNS) + "\n"
 
 
-def turning_points_rows(analysis: Analysis) -> str:
-    """One CSV line per turning point of the record (used or left out, with the reason),
-    with the fitted envelope at the used ones; "" when there are none."""
+def turning_points_table(analysis: Analysis) -> list[tuple]:
+    """One row per turning point of the record, in :data:`TURNING_POINT_COLUMNS` order
+    (used or left out, with the reason; the fitted envelope at the used ones)."""
     turning, fit = analysis.turning, analysis.fit
     if turning is None:
-        return ""
+        return []
     amplitude, sigma = list(turning.y), list(turning.sigma)
     envelope = [None] * len(turning.t)
     used = [i for i, flag in enumerate(turning.used) if flag]
@@ -217,12 +217,17 @@ def turning_points_rows(analysis: Analysis) -> str:
         if values is not None and len(values) == len(used):
             for i, value in zip(used, values):
                 column[i] = value
+    return [(analysis.source, float(turning.t[i]), _number(amplitude[i]), _number(sigma[i]),
+             bool(turning.used[i]), turning.excluded_reason[i] or None, _number(envelope[i]))
+            for i in range(len(turning.t))]
+
+
+def turning_points_rows(analysis: Analysis) -> str:
+    """:func:`turning_points_table` as CSV lines; "" when there are none."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    for i in range(len(turning.t)):
-        writer.writerow([_csv_cell(v) for v in (
-            analysis.source, float(turning.t[i]), _number(amplitude[i]), _number(sigma[i]),
-            bool(turning.used[i]), turning.excluded_reason[i] or None, _number(envelope[i]))])
+    for row in turning_points_table(analysis):
+        writer.writerow([_csv_cell(v) for v in row])
     return buffer.getvalue()
 
 

@@ -196,6 +196,10 @@ def _checked(t, y, sigma):
         raise FitError("turning points contain NaN or inf; remove them before fitting")
     if np.any(np.diff(t) <= 0):
         raise FitError("turning-point times must be strictly increasing")
+    if _looks_like_a_waveform(y):
+        raise FitError("these values swing up and down smoothly like samples of the "
+                       "oscillation itself, not turning-point amplitudes: fit the waveform "
+                       "with mcfit.analyse(t, x), which finds its turning points first")
     if not np.max(y) > 0:
         raise FitError("no turning-point amplitude is > 0 (amplitudes are measured about the "
                        "equilibrium): there is no decay to fit")
@@ -213,6 +217,19 @@ def _checked(t, y, sigma):
     if sigma.shape != y.shape or not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
         raise FitError("amplitude uncertainties must be finite and > 0, one per turning point")
     return t, y, sigma, noise_from_residuals
+
+
+def _looks_like_a_waveform(y):
+    """Samples of an oscillation, not amplitudes: many below zero, or rising as often as
+    falling in five or more swings of four or more steps each (amplitudes fall, or
+    scatter step by step in the noise)."""
+    if y.size < 20:
+        return False
+    if np.count_nonzero(y < 0) > 0.3 * y.size:
+        return True
+    rising = np.diff(y) > 0
+    runs = 1 + np.count_nonzero(rising[1:] != rising[:-1])
+    return bool(0.35 <= rising.mean() <= 0.65 and runs >= 10 and rising.size / runs >= 4.0)
 
 
 def _angular_frequency(domain, period, period_sigma):

@@ -1,0 +1,135 @@
+"""The Python interface: a record (arrays, a file, many files) in, an :class:`Analysis` out.
+
+The keyword options are the command line's, spelled as Python names::
+
+    read:  time_col, signal_col, sheet, rate, input, domain, run, angle_from
+    fit:   criterion, model, bootstrap, seed, method, pendulum, degrees, start, end
+
+>>> import mcfit
+>>> record = mcfit.simulate_record(a=0.1, b=0.1, c=0.01, y0=4.0, period=0.5,
+...                                duration=20.0, rate=100.0, noise=0.005, rng=1)
+>>> result = mcfit.analyse(record)
+>>> result.fit.model, result.status
+('abc', 'ok')
+>>> round(result.summary()["params"]["b"]["value"], 2)
+0.1
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from mcfit.analysis import Analysis, analyse_record
+from mcfit.errors import UsageError
+from mcfit.record import Record, detect_kind
+
+__all__ = ["analyse", "analyse_file", "analyse_files"]
+
+READ_OPTIONS = ("time_col", "signal_col", "sheet", "rate", "input", "domain", "run",
+                "angle_from")
+FIT_OPTIONS = ("criterion", "model", "bootstrap", "seed", "method", "pendulum", "degrees",
+               "start", "end")
+
+
+def analyse(t, x=None, *, source="<arrays>", kind=None, domain="time", **options) -> Analysis:
+    """Find the turning points of a record and fit the damping law to them.
+
+    Parameters
+    ----------
+    t, x : array_like, shape (n,)
+        Times (s, or cycle numbers with ``domain="cycle"``) and the signal: a waveform, or
+        a table of turning points (extrema or amplitudes). ``t`` may instead be a
+        :class:`Record` (as :func:`mcfit.simulate_record` returns) with ``x`` left out.
+    source : str
+        The name the results carry.
+    kind : {"waveform", "turning-points"}, optional
+        What ``x`` holds [default: detected].
+    domain : {"time", "cycle"}
+    **options
+        The fit's options (``FIT_OPTIONS``), e.g. ``model="ab"``, ``method="waveform"``,
+        ``bootstrap=200, seed=1``.
+
+    Returns
+    -------
+    Analysis
+        ``status`` "ok", or "error" with ``error`` when the record cannot be fitted.
+
+    >>> import numpy as np, mcfit
+    >>> t = np.arange(0.0, 30.0, 0.01)
+    >>> noise = np.random.default_rng(1).normal(0.0, 1e-3, t.size)
+    >>> x = np.exp(-0.05 * t) * np.cos(2 * np.pi * t) + noise
+    >>> result = mcfit.analyse(t, x)
+    >>> result.fit.model, round(result.fit.values["b"], 3)
+    ('b', 0.05)
+    """
+    if x is None:
+        if not isinstance(t, Record):
+            raise UsageError("give the signal x beside the times t, or a Record as t.")
+        record = t
+    else:
+        t, x = np.asarray(t, dtype=float), np.asarray(x, dtype=float)
+        if t.shape != x.shape or t.ndim != 1:
+            raise UsageError(f"t and x must be 1-D arrays of one length, not {t.shape} and "
+                             f"{x.shape}.")
+        record = Record(source=source, t=t, x=x, kind=kind or detect_kind(t, x),
+                        domain=domain, time_unit="s" if domain == "time" else None)
+    return analyse_record(record, **_fit_keywords(options))
+
+
+def analyse_file(path, **options) -> Analysis:
+    """:func:`analyse` of a record file (CSV, text, Excel...); for a file of several runs
+    side by side give ``run=N``, or use :func:`analyse_files` for every run."""
+    from mcfit.records import read_records
+
+    records = read_records(path, **_taken(options, READ_OPTIONS))
+    keywords = _fit_keywords(options)
+    if len(records) > 1:
+        raise UsageError(f"{path} holds {len(records)} runs side by side; give run=N for "
+                         "one, or use analyse_files for all of them.")
+    return replace(analyse_record(records[0], **keywords), source=records[0].name)
+
+
+def analyse_files(paths, *, jobs=1, **options):
+    """Every record of ``paths`` (files or directories; every run of a multi-run file) as
+    a pandas DataFrame with the columns of ``--format csv``, one row per record, in input
+    order; ``jobs`` worker processes."""
+    import csv
+    import io
+
+    import pandas as pd
+
+    from mcfit import batch, report
+
+    chosen = _taken(options, READ_OPTIONS + FIT_OPTIONS)
+    _nothing_else(options, READ_OPTIONS + FIT_OPTIONS)
+    sources = batch.expand_inputs([str(p) for p in ([paths] if isinstance(paths, str)
+                                                   else paths)])
+    fit_options = batch.FitOptions(output_format="csv", **chosen)
+    bootstrap = fit_options.bootstrap > 0
+    rows = [result.output for file_result in batch.run_jobs(
+        sources, fit_options, [None] * len(sources), jobs=jobs)
+        for result in file_result.records]
+    text = report.csv_header(bootstrap) + "".join(rows)
+    return pd.read_csv(io.StringIO(text), quoting=csv.QUOTE_MINIMAL, keep_default_na=False,
+                       na_values=[""])
+
+
+def _taken(options, names):
+    """The ``names`` found in ``options``, taken out of it."""
+    return {k: options.pop(k) for k in names if k in options}
+
+
+def _nothing_else(options, names):
+    if options:
+        raise UsageError(f"unknown options: {', '.join(sorted(options))}; give "
+                         f"{', '.join(names)}.")
+
+
+def _fit_keywords(options):
+    """analyse_record's keywords from the fit's options (a seed becomes a generator)."""
+    keywords = _taken(options, FIT_OPTIONS)
+    _nothing_else(options, FIT_OPTIONS)
+    keywords["rng"] = np.random.default_rng(keywords.pop("seed", None))
+    return keywords

@@ -1,0 +1,120 @@
+"""The Python interface: analyse, analyse_file, analyse_files and what an Analysis offers."""
+
+import doctest
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import mcfit
+from mcfit import report
+from mcfit.errors import FitError, UsageError
+
+ROOT = Path(__file__).parents[1]
+SAMPLES = ROOT / "sample_data"
+
+
+@pytest.fixture(scope="module")
+def fig_20_19():
+    return mcfit.analyse_file(str(SAMPLES / "fig20_19_all_three.csv"))
+
+
+def test_the_readme_example_runs(monkeypatch):
+    monkeypatch.chdir(ROOT)  # its paths are the fresh clone's
+    result = doctest.testfile(str(ROOT / "README.md"), module_relative=False,
+                              optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    assert result.attempted >= 10 and result.failed == 0
+
+
+def test_the_docstring_examples_run():
+    import mcfit.api
+
+    result = doctest.testmod(mcfit.api, optionflags=doctest.ELLIPSIS)
+    assert result.attempted >= 5 and result.failed == 0
+
+
+def test_an_analysis_speaks_the_command_lines_contract(fig_20_19):
+    assert fig_20_19.summary() == json.loads(report.to_json(fig_20_19))
+    assert fig_20_19.report() == report.to_text(fig_20_19)
+    text = repr(fig_20_19)
+    assert text.startswith("Analysis(source=") and "model='abc'" in text and len(text) < 200
+    table = fig_20_19.turning_points
+    assert len(table) == fig_20_19.turning.count
+    np.testing.assert_allclose(table["t"], fig_20_19.turning.t)
+    used = table[table["used"]]
+    np.testing.assert_allclose(used["envelope"], fig_20_19.fit.y_fit)
+
+
+def test_plot_and_figure_draw_without_a_display(fig_20_19, tmp_path):
+    ax = fig_20_19.plot()
+    assert ax.get_title() == "record and turning points" and len(ax.lines) >= 4
+    figure = fig_20_19.figure(title="Fig. 20.19")
+    figure.savefig(tmp_path / "fig.png")
+    assert (tmp_path / "fig.png").stat().st_size > 10_000
+    failed = mcfit.analyse(np.arange(50.0), np.ones(50))
+    assert failed.status == "error" and "status='error'" in repr(failed)
+    with pytest.raises(FitError, match="was not fitted"):
+        failed.plot()
+
+
+def test_analyse_takes_arrays_or_a_simulated_record():
+    truth = 0.05
+    record = mcfit.simulate_record(a=0.0, b=truth, c=0.0, y0=1.0, period=1.0, duration=20.0,
+                                   rate=100.0, noise=1e-3, rng=3)
+    t, x = record  # still unpacks as the arrays
+    for result in (mcfit.analyse(record), mcfit.analyse(t, x, source="by hand")):
+        assert result.fit.model == "b"
+        assert abs(result.fit.values["b"] - truth) < 4 * result.fit.stderr["b"]
+    assert mcfit.analyse(t, x, source="by hand").source == "by hand"
+    forced = mcfit.analyse(record, model="ab", method="turning-points")
+    assert forced.fit.model == "ab" and forced.fit.method == "turning-points"
+
+
+def test_options_are_checked_in_python_words():
+    record = mcfit.simulate_record(0.0, 0.05, 0.0, 1.0, 1.0, 10.0, 100.0)
+    with pytest.raises(UsageError, match="unknown options: colour"):
+        mcfit.analyse(record, colour="red")
+    with pytest.raises(UsageError, match="unknown options: time_col"):
+        mcfit.analyse(record, time_col="t")  # arrays have no columns
+    with pytest.raises(UsageError, match="1-D arrays of one length"):
+        mcfit.analyse(np.arange(5.0), np.arange(4.0))
+
+
+def test_files_and_runs():
+    capstone = str(SAMPLES / "capstone_runs.csv")
+    with pytest.raises(UsageError, match="5 runs side by side; give run=N"):
+        mcfit.analyse_file(capstone)
+    second = mcfit.analyse_file(capstone, run=2, method="turning-points")
+    assert second.source == f"{capstone}#Run 2" and second.fit.model == "bc"
+    table = mcfit.analyse_files([capstone, str(SAMPLES / "coulomb_stop.csv")],
+                                method="turning-points")
+    assert list(table.columns) == list(report.csv_columns())
+    assert table["source"].tolist()[:2] == [f"{capstone}#Run 1", f"{capstone}#Run 2"]
+    assert table["run"].isna().tolist() == [False] * 5 + [True]
+    assert (table["status"] == "ok").all()
+    np.testing.assert_allclose(table["b"][1], second.fit.values["b"])
+
+
+def test_fit_decay_refuses_a_raw_waveform():
+    t = np.arange(0.0, 30.0, 0.01)
+    x = np.exp(-0.1 * t) * np.cos(2 * np.pi * t)
+    for signal in (x, x + 3.0):  # about zero, and on an offset
+        with pytest.raises(FitError, match="mcfit.analyse"):
+            mcfit.fit_decay(t, signal)
+    # Amplitudes that scatter in the noise, or fall, are amplitudes.
+    rng = np.random.default_rng(0)
+    n = np.arange(200.0)
+    assert mcfit.fit_decay(n, 1.0 + rng.normal(0.0, 0.01, n.size)).model == "none"
+    assert mcfit.fit_decay(n, np.exp(-0.01 * n) + rng.normal(0, 1e-3, n.size)).status == "ok"
+
+
+def test_the_package_lists_its_names_and_record_needs_no_pandas():
+    assert {"analyse", "analyse_file", "analyse_files", "Record"} <= set(dir(mcfit))
+    code = "import sys, mcfit; mcfit.Record; print('pandas' in sys.modules)"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            env={**os.environ, "PYTHONWARNINGS": "ignore"}, check=True)
+    assert result.stdout.strip() == "False"
