@@ -15,24 +15,13 @@ import pytest
 from click.testing import CliRunner
 
 from mcfit import decay
+from mcfit.bounds import waveform_crlb
 from mcfit.cli import cli
 from mcfit.fit import fit_decay
 from mcfit.turning import find_turning_points
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
-
-
-def waveform_crlb(t, y0, a, b, c, omega, sigma_x, terms):
-    """CRLB of the present coefficients for x = y(t)*cos(omega*t + phi) + x_eq + noise."""
-    y = decay.amplitude(t, y0, a, b, c)
-    jacobian = decay.amplitude_jacobian(t, y0, a, b, c)
-    cos, sin = np.cos(omega * t), np.sin(omega * t)
-    columns = ([jacobian[:, 0] * cos] + [jacobian[:, "abc".index(k) + 1] * cos for k in terms]
-               + [-y * t * sin, -y * sin, np.ones_like(t)])
-    design = np.column_stack(columns)
-    fisher = design.T @ design / sigma_x**2
-    return np.sqrt(np.diag(np.linalg.inv(fisher)))[1:1 + len(terms)]
 
 
 # Records per scene: the RMSE is then known to about 3.5 %, so a chain at 1.15 bounds passes
@@ -67,7 +56,7 @@ def test_rmse_and_bias_of_the_whole_chain_against_the_waveform_crlb(name):
                            period=turning.period, model=terms)
         estimates.append([result.values[k] for k in terms])
     estimates = np.array(estimates)
-    bound = waveform_crlb(t, y0, a, b, c, omega, sigma_x, terms)
+    bound = np.array(list(waveform_crlb(t, y0, a, b, c, period, sigma_x, terms).values()))
     rmse = np.sqrt(np.mean((estimates - truth) ** 2, axis=0))
     bias = np.abs(estimates.mean(axis=0) - truth)
     assert np.all(rmse <= 1.25 * bound), dict(zip(terms, rmse / bound))

@@ -2,6 +2,7 @@
 
 import doctest
 import json
+import math
 import os
 import subprocess
 import sys
@@ -118,3 +119,24 @@ def test_the_package_lists_its_names_and_record_needs_no_pandas():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             env={**os.environ, "PYTHONWARNINGS": "ignore"}, check=True)
     assert result.stdout.strip() == "False"
+
+
+def test_the_cramer_rao_bounds_against_the_fisher_matrix_by_hand():
+    """Exponential decay: dy/dy0 = exp(-b t), dy/db = -t y0 exp(-b t)."""
+    import mcfit.bounds
+
+    assert doctest.testmod(mcfit.bounds).failed == 0
+    t, y0, b, sigma = np.arange(0.0, 50.0, 0.5), 1.0, 0.02, 1e-3
+    e = np.exp(-b * t)
+    design = np.column_stack([e, -t * y0 * e]) / sigma
+    by_hand = math.sqrt(np.linalg.inv(design.T @ design)[1, 1])
+    assert mcfit.amplitude_crlb(t, y0, 0.0, b, 0.0, sigma, "b")["b"] == pytest.approx(
+        by_hand, rel=1e-9)
+    # A waveform: the same with the carrier, plus frequency, phase and offset columns.
+    omega = 2 * math.pi
+    c, s = np.cos(omega * t), np.sin(omega * t)
+    design = np.column_stack([e * c, -t * y0 * e * c, -y0 * e * t * s, -y0 * e * s,
+                              np.ones_like(t)]) / sigma
+    by_hand = math.sqrt(np.linalg.inv(design.T @ design)[1, 1])
+    assert mcfit.waveform_crlb(t, y0, 0.0, b, 0.0, 1.0, sigma, "b")["b"] == pytest.approx(
+        by_hand, rel=1e-9)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from mcfit import decay
+from mcfit.bounds import amplitude_crlb
 from mcfit.errors import FitError
 from mcfit.fit import LRT_ALPHA, MODELS, boundary_lrt_p_value, fit_decay
 
@@ -157,13 +158,6 @@ def test_the_same_record_in_other_units_gives_the_same_result(rng):
                                                                     rel=1e-9)
 
 
-def _crlb(t, y0, a, b, c, sigma, terms):
-    jacobian = decay.amplitude_jacobian(t, y0, a, b, c)
-    columns = [0] + ["abc".index(k) + 1 for k in terms]
-    fisher = jacobian[:, columns].T @ jacobian[:, columns] / sigma**2
-    return np.sqrt(np.diag(np.linalg.inv(fisher)))[1:]
-
-
 @pytest.mark.parametrize("scene", ["all three (Fig. 20.19)", "fluid and hysteretic"])
 def test_rmse_reaches_the_cramer_rao_bound_on_amplitudes(scene, rng):
     """Amplitudes with known Gaussian noise: RMSE <= 1.25 CRLB and |bias| <= 0.2 CRLB."""
@@ -177,7 +171,7 @@ def test_rmse_reaches_the_cramer_rao_bound_on_amplitudes(scene, rng):
                            period=period, model=model)
         estimates.append([result.values[k] for k in model])
     estimates = np.array(estimates)
-    bound = _crlb(t - t[0], y0, a, b, c, sigma, model)
+    bound = np.array(list(amplitude_crlb(t - t[0], y0, a, b, c, sigma, model).values()))
     rmse = np.sqrt(np.mean((estimates - truth) ** 2, axis=0))
     bias = np.abs(np.mean(estimates, axis=0) - truth)
     assert np.all(rmse <= 1.25 * bound), rmse / bound

@@ -21,6 +21,7 @@ _PUBLIC = {
     "analyse_record": "mcfit.analysis", "Analysis": "mcfit.analysis",
     "simulate_record": "mcfit.motion",
     "McfitError": "mcfit.errors",
+    "amplitude_crlb": "mcfit.bounds", "waveform_crlb": "mcfit.bounds",
 }
 __all__ = sorted(_PUBLIC) + ["__version__"]
 

@@ -9,7 +9,8 @@ the printed table:
   with the error ``max|x - x_ref| / y0`` on a grid of :data:`GRID_SAMPLES_PER_PERIOD`
   samples per period against the accurate integrator at rtol :data:`REFERENCE_RTOL`.
 - **fitting** (:func:`run_fitting`): on the same noisy records, the RMSE and bias of a, b,
-  c in units of the waveform Cramer-Rao bound (THEORY.md section 7, :func:`waveform_crlb`)
+  c in units of the waveform Cramer-Rao bound (THEORY.md section 7,
+  :func:`mcfit.bounds.waveform_crlb`)
   and the time per record, for mcfit (turning points then :func:`mcfit.fit.fit_decay`,
   forced to the true model and with the model it selects), the log decrement of
   single-sample peaks (:func:`log_decrement_rate`) and a Hilbert-envelope fit
@@ -47,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from mcfit import decay, motion
+from mcfit.bounds import waveform_crlb
 
 __all__ = [
     "SECTIONS",
@@ -62,7 +64,6 @@ __all__ = [
     "FitCell",
     "Throughput",
     "machine_summary",
-    "waveform_crlb",
     "log_decrement_rate",
     "hilbert_envelope_rate",
     "run_integrators",
@@ -376,49 +377,6 @@ def format_integrators(result: IntegratorResult) -> str:
 # --------------------------------------------------------------------------- fitting
 
 
-def waveform_crlb(t, y0, a, b, c, period, phase, sigma_x, model):
-    """Cramer-Rao bounds of the amplitude-law coefficients from a sampled waveform.
-
-    The waveform is ``x(t) = y(t; y0, a, b, c) * cos(omega*t + phase) + x_eq`` with white
-    Gaussian noise ``sigma_x`` on each sample (THEORY.md section 7, applied to the samples
-    rather than to the turning points). The parameters are y0, the coefficients named in
-    ``model``, omega, phase and x_eq; the bound is ``sqrt(diag(inv(J.T @ J / sigma_x**2)))``.
-
-    Parameters
-    ----------
-    t : ndarray, shape (n,)
-        Sample times (s) from the time where the amplitude is ``y0``.
-    y0, a, b, c : float
-        Amplitude (U) and coefficients (1/(U*s), 1/s, U/s).
-    period : float
-        Period (s).
-    phase : float
-        Phase at t = 0 (rad).
-    sigma_x : float
-        Noise standard deviation per sample (U).
-    model : str
-        Letters of "abc": the coefficients that are free.
-
-    Returns
-    -------
-    dict
-        Letter -> bound, in the coefficient's units.
-    """
-    omega = 2 * math.pi / period
-    y, jacobian = decay.amplitude_and_jacobian(t, y0, a, b, c)
-    carrier = np.cos(omega * t + phase)
-    quadrature = np.sin(omega * t + phase)
-    amplitude_columns = [0] + ["abc".index(k) + 1 for k in model]
-    design = np.column_stack([jacobian[:, amplitude_columns] * carrier[:, None],
-                              -y * t * quadrature, -y * quadrature, np.ones_like(t)])
-    # Scale the columns to unit norm so the inverse is well conditioned.
-    norms = np.linalg.norm(design, axis=0)
-    scaled = design / norms
-    covariance = np.linalg.inv(scaled.T @ scaled) / np.outer(norms, norms) * sigma_x**2
-    bounds = np.sqrt(np.diag(covariance))
-    return {k: float(bounds[i + 1]) for i, k in enumerate(model)}
-
-
 def log_decrement_rate(t, x, period):
     """b (1/s) from single-sample peaks: what is often done today.
 
@@ -598,7 +556,7 @@ def _run_cell(scene: FitScene, snr, nominal_spc, config: BenchConfig, cell_seed)
         if repeat % 2 == 0:  # antithetic pairs: the second record negates the noise
             t, x, mirrored, phase, sigma_x = _fit_record_pair(scene, snr, spc, rng)
             bound = waveform_crlb(t, scene.y0, scene.a, scene.b, scene.c, scene.period,
-                                  phase, sigma_x, scene.model)
+                                  sigma_x, scene.model, phase=phase)
         else:
             x = mirrored
         variances.append({k: v**2 for k, v in bound.items()})
