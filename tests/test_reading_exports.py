@@ -203,7 +203,7 @@ def test_many_repeats_are_still_bursts():
     t = np.repeat(np.arange(0.0, 10.0, 0.1), 2)
     x = np.exp(-0.1 * t) * np.cos(2 * np.pi * t)
     text = "t,x\n" + "".join(f"{a:.1f},{b:.6f}\n" for a, b in zip(t, x))
-    with pytest.raises(InputError, match="repeat the previous timestamp.*--rate"):
+    with pytest.raises(InputError, match="repeat the previous timestamp.*`rate=HZ`"):
         read_record(write("bursts.csv", text))
 
 
@@ -230,7 +230,7 @@ def test_event_driven_encoder_log_keeps_its_times():
     text = "micros,count\n" + "".join(f"{a},{int(b)}\n" for a, b in zip(micros, counts[change]))
     record = read_record(write("encoder.txt", text))
     check(record, micros.astype(float), counts[change])
-    assert not any("--rate" in note for note in record.notes)
+    assert not any("`rate" in note for note in record.notes)
     assert any("event-driven" in note for note in record.notes)
 
 
@@ -252,7 +252,7 @@ def test_a_megabyte_on_one_line_is_a_row_vector():
     assert len(text) > 1 << 20
     path = write("vector.txt", text)
     with pytest.raises(InputError, match=r"has one column \(its values written in one row\).*"
-                                         "--rate HZ"):
+                                         "`rate=HZ`"):
         read_record(path)
     record = read_record(path, rate=50)
     np.testing.assert_allclose(record.x, values, rtol=0, atol=1e-12)
@@ -379,7 +379,7 @@ def test_a_clock_time_that_cannot_be_read_names_its_column_row_and_options():
     lines.insert(2, "-----,-----")
     with pytest.raises(InputError, match="^'16h04m39.0' in the clock-time column 'Timestamp' "
                                          "\\(column 1\\) of clock.csv \\(data row 401\\) is "
-                                         "not a clock time like the others.*--time-col"):
+                                         "not a clock time like the others.*`time_col`"):
         read_record(write("clock.csv", "\n".join(lines) + "\n"))
 
 

@@ -118,7 +118,7 @@ def test_rate_builds_time_and_reports_bad_timestamps(tmp_path):
     stamps = np.repeat(np.arange(T.size // 4), 4).astype(float)  # logger bursts
     text = "stamp,x\n" + rows(",", columns=(stamps, X))
     path = write(tmp_path, "logger.csv", text)
-    with pytest.raises(InputError, match="repeat.*--rate"):
+    with pytest.raises(InputError, match="repeat.*`rate=HZ`"):
         read_record(path)
     record = read_record(path, rate=20)
     np.testing.assert_allclose(record.t, np.arange(T.size) / 20)
@@ -212,7 +212,7 @@ def test_messages_name_a_record_by_its_path_as_given(tmp_path):
 def test_unknown_column(tmp_path):
     path = write(tmp_path, "run3.csv", "t,y\n" + rows(","))
     with pytest.raises(UsageError, match="^column 'x' not found in run3.csv; columns are: t, "
-                                         "y. Use --signal-col.$"):
+                                         "y. Use `signal_col`.$"):
         read_record(path, signal_col="x")
     with pytest.raises(UsageError, match="column 5 not found in run3.csv"):
         read_record(path, time_col=5)

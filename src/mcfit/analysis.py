@@ -41,7 +41,7 @@ class Analysis:
         return tuple(found)
 
     def summary(self) -> dict:
-        """The results as plain Python objects: exactly one line of ``--format json``."""
+        """The results as plain Python objects: exactly one JSON line of the command line."""
         from mcfit.report import to_json_dict
 
         return to_json_dict(self)
@@ -55,7 +55,7 @@ class Analysis:
     @property
     def turning_points(self):
         """The turning points as a pandas DataFrame: t, amplitude, sigma, used, why not
-        (``excluded_reason``) and the fitted envelope, as ``--turning-points-out`` writes."""
+        (``excluded_reason``) and the fitted envelope, as the command line writes them."""
         import pandas as pd
 
         from mcfit.report import TURNING_POINT_COLUMNS, turning_points_table

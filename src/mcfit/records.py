@@ -71,7 +71,7 @@ _UNIT = re.compile(r"^(.*?)\s*[\(\[]\s*([^\)\]]*)\s*[\)\]]\s*$")
 
 
 def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None,
-                input=None, domain=None, run=None,  # noqa: A002 - mirrors the --input option
+                input=None, domain=None, run=None,  # noqa: A002 - mirrors the input option
                 angle_from=None):
     """Read a decay record from a file, ``"-"`` (stdin) or an open stream.
 
@@ -237,7 +237,7 @@ def _open_table(source, sheet):
     if head.startswith(_CFB_SIGNATURE):
         return _excel_table(path, name, sheet, ".xls")
     if sheet is not None:
-        raise UsageError(f"--sheet applies to Excel files only, and {name} is a text file.")
+        raise UsageError(f"`sheet` applies to Excel files only, and {name} is a text file.")
     return _text_table(name, head, path, tail=tail)
 
 
@@ -267,7 +267,7 @@ def _gzip_table(path, name, sheet):
         raise InputError(f"{name} holds a compressed workbook, which mcfit cannot open. "
                          "Decompress it first.")
     if sheet is not None:
-        raise UsageError(f"--sheet applies to Excel files only, and {name} is a text file.")
+        raise UsageError(f"`sheet` applies to Excel files only, and {name} is a text file.")
     table = _text_table(name, data, None)
     table.notes.insert(0, "gzip-compressed file decompressed")
     return table
@@ -621,13 +621,13 @@ def _sheet_name(sheets, sheet, name):
         index = int(sheet)
         if not 1 <= index <= len(sheets):
             raise UsageError(f"sheet {index} not found in {name}; it has {len(sheets)} "
-                             f"sheet(s): {', '.join(sheets)}. Use --sheet with a name or "
+                             f"sheet(s): {', '.join(sheets)}. Use `sheet` with a name or "
                              "1-based index.")
         return sheets[index - 1]
     if sheet in sheets:
         return sheet
     raise UsageError(f"sheet '{sheet}' not found in {name}; sheets are: {', '.join(sheets)}. "
-                     "Use --sheet.")
+                     "Use `sheet`.")
 
 
 _CFB_SIGNATURE = b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1"  # OLE compound file
@@ -680,7 +680,7 @@ def _excel_table(path, name, sheet, suffix):
     raw = raw.dropna(how="all").dropna(axis=1, how="all")
     if raw.empty:
         raise InputError(f"sheet '{sheet_name}' of {name} is empty. Choose the sheet holding "
-                         "the data with --sheet.")
+                         "the data with `sheet`.")
     text = "".join("\t".join(_cell_text(v) for v in row) + "\n"
                    for row in raw.itertuples(index=False, name=None))
     table = _text_table(name, text.encode("utf-8"), None)
@@ -1381,14 +1381,14 @@ def _chosen_runs(table, wanted, column_specs):
     if not chosen:
         held = ", ".join(str(r.number) for r in runs) if runs[0].label else "one run"
         raise UsageError(f"run {wanted} not found in {table.name}; it holds {held}. "
-                         "Give one of those numbers to --run.")
+                         "Give one of those numbers to `run`.")
     return chosen
 
 
 def _resolve_column(table, spec, role, within=None):
     """The 0-based column named or numbered by ``spec``; a name is looked for among the
     columns ``within`` (default all), also without its unit and its run label."""
-    option = {"time": "--time-col", "signal": "--signal-col"}.get(role, "--angle-from")
+    option = {"time": "`time_col`", "signal": "`signal_col`"}.get(role, "`angle_from`")
     listing = ", ".join(table.names)
     if isinstance(spec, (int, np.integer)) or (isinstance(spec, str) and spec.strip().isdigit()
                                               and spec not in table.names):
@@ -1525,7 +1525,7 @@ def _read_columns(table, indices):
                     f"'{_shown(values.iloc[row])}' in the clock-time column {_describe(table, index)} "
                     f"of {table.name} (data row {row + 1}) is not a clock time like the "
                     f"others ('{first}'). Fix or delete that row, or choose another time "
-                    "column with --time-col or give --rate HZ.") from None
+                    "column with `time_col` or give `rate=HZ`.") from None
             if bad.any():
                 row = int(np.flatnonzero(bad.values)[0])
                 raise InputError(
@@ -1786,17 +1786,17 @@ def _chosen_columns(table, time_col, signal_col, rate, run, angle_from):
         if signal_index is None:
             if table.sample.shape[1] == 1 or time_index is None:
                 raise InputError(f"no signal column found in {name} (columns: "
-                                 f"{', '.join(table.names)}). Use --signal-col.")
+                                 f"{', '.join(table.names)}). Use `signal_col`.")
             raise InputError(f"no varying signal column in {name} besides the time "
                              f"{_describe(table, time_index)}; columns are: "
-                             f"{', '.join(table.names)}. Use --signal-col.")
+                             f"{', '.join(table.names)}. Use `signal_col`.")
     if time_index is not None and time_index == signal_index:
         raise UsageError(f"the time and the signal are the same column "
-                         f"{_describe(table, signal_index)} of {name}. Use --time-col and "
-                         "--signal-col with different columns.")
+                         f"{_describe(table, signal_index)} of {name}. Use `time_col` and "
+                         "`signal_col` with different columns.")
     if time_index is None and rate is None:
         raise InputError(f"no time column found in {name} (no column increases steadily). "
-                         "Name it with --time-col or give the sample rate with --rate HZ.")
+                         "Name it with `time_col` or give the sample rate with `rate=HZ`.")
     return time_index, signal_index, others, ignored
 
 
@@ -1829,12 +1829,12 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
     if len(table.names) == 1 and time_col is None and rate is None and signal_col is None:
         rows = " (its values written in one row)" if table.transposed else ""
         raise InputError(f"{name} has one column{rows}, {_describe(table, 0)}, and no time "
-                         "column. Give the sample rate with --rate HZ, or add a time column.")
+                         "column. Give the sample rate with `rate=HZ`, or add a time column.")
     time_index, signal_index, others, ignored = _chosen_columns(
         table, time_col, signal_col, rate, run, angle_from)
     if run.label is not None:
         notes.append(f"{run.label}, one of {run.count} runs side by side in the file, fitted "
-                     f"as a record of its own (--run {run.number} picks it)")
+                     f"as a record of its own (`run={run.number}` picks it)")
 
     indices = [signal_index] if time_index is None else [time_index, signal_index]
     columns = _read_columns(table, indices)
@@ -1851,7 +1851,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         what = "signal" if t is None else "time"
         column = signal_index if t is None else time_index
         raise InputError(f"the {what} column {_describe(table, column)} of {name} holds no "
-                         "numbers. Choose another column with --time-col/--signal-col.")
+                         "numbers. Choose another column with `time_col` or `signal_col`.")
     end = last[-1] + 1
     if end < x.size:
         notes.append(f"{x.size - end} empty trailing rows dropped (padding)")
@@ -1864,11 +1864,11 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
             t, x = t[~missing_t], x[~missing_t]
     if not np.isfinite(x).any():
         raise InputError(f"the signal column {_describe(table, signal_index)} of {name} holds "
-                         "no numbers (all empty or NaN). Choose the signal with --signal-col.")
+                         "no numbers (all empty or NaN). Choose the signal with `signal_col`.")
     finite_x = x[np.isfinite(x)]
     if np.ptp(finite_x) == 0:
         raise InputError(f"the signal column {_describe(table, signal_index)} of {name} is "
-                         f"constant ({finite_x[0]:g}). Choose the signal with --signal-col.")
+                         f"constant ({finite_x[0]:g}). Choose the signal with `signal_col`.")
     # Trailing NaN in the signal alone (a shorter run sharing the time column).
     last_x = np.flatnonzero(np.isfinite(x))[-1] + 1
     if last_x < x.size:
@@ -1900,7 +1900,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         detected_kind = detect_kind(t, x)
     chosen_kind = kind or detected_kind
     if kind is None and detected_kind == "turning-points":
-        notes.append("read as a table of turning points (override with --input waveform)")
+        notes.append("read as a table of turning points (override with `input=waveform`)")
 
     if chosen_kind == "turning-points":
         finite = np.isfinite(t) & np.isfinite(x)
@@ -1922,15 +1922,15 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
             where = int(np.flatnonzero(~(steps > 0))[0]) + 1
             if problem:
                 raise InputError(f"the time column {_describe(table, time_index)} of {name} is "
-                                 f"unusable: {problem}. Give the sample rate with --rate HZ.")
+                                 f"unusable: {problem}. Give the sample rate with `rate=HZ`.")
             raise InputError(f"the time column {_describe(table, time_index)} of {name} does "
                              f"not increase (data row {where + 1}: {t[where - 1]:g} then "
                              f"{t[where]:g}). Sort the file, choose another column with "
-                             "--time-col, or use --rate HZ.")
+                             "`time_col`, or use `rate=HZ`.")
         problem = None if event_driven else _timestamp_problem(t)
         if problem:
             notes.append(f"irregular timestamps: {problem}; if the logger stamps samples in "
-                         "bursts, use --rate HZ")
+                         "bursts, use `rate=HZ`")
         gaps = np.count_nonzero(~np.isfinite(x))
         if gaps:
             notes.append(f"{gaps} samples without a signal value (gaps)")
@@ -1943,17 +1943,17 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
               and np.all(np.diff(t) == np.diff(t)[0]) and time_unit is None):
             domain = "cycle"
         if domain == "cycle":
-            notes.append("time column read as cycle number n (override with --domain time)")
+            notes.append("time column read as cycle number n (override with `domain=time`)")
 
     if time_index is not None and time_col is None:
         notes.append(f"time column: {_describe(table, time_index)} (chosen automatically; "
-                     "use --time-col to change)")
+                     "use `time_col` to change)")
     if signal_col is None and angle_from is None:
         other = ""
         if others:
             other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
         notes.append(f"signal column: {_describe(table, signal_index)} (chosen automatically; "
-                     f"use --signal-col to change{other})")
+                     f"use `signal_col` to change{other})")
 
     if domain == "time" and time_unit is not None:
         seconds = _SECONDS_PER_UNIT.get(time_unit.strip().lower().replace("μ", "u").replace("µ", "u"))

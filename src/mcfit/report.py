@@ -21,7 +21,7 @@ CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", 
                "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error",
                "q_initial_stderr", "q_final_stderr", "domain", "units", "method", "resolved",
                "reduced_chi_square", "warnings", "run")
-# Appended with --bootstrap: the 95 % interval of each parameter and of Q.
+# Appended with bootstrap intervals: the 95 % interval of each parameter and of Q.
 BOOTSTRAP_CSV_COLUMNS = tuple(f"{k}_boot_{end}" for k in ("y0", "a", "b", "c", "q_initial")
                               for end in ("low", "high"))
 _Q_KEYS = ("initial", "final", "min", "max")
@@ -267,7 +267,7 @@ def _regimes_lines(fit) -> list[str]:
         v, e = fit.values, fit.stderr
         return [f"  model:           power law dy/dt = -k*y^n, n = {_format(v['n'], e['n'])}, "
                 f"k = {_format(v['k'], e['k'])}"]
-    how = ("forced with --model" if fit.forced else
+    how = ("forced with `model`" if fit.forced else
            f"by {fit.criterion.upper()} and likelihood-ratio test")
     if fit.model == NONE:
         lines = [f"  regimes present: none: no damping detected ({how})"]

@@ -611,4 +611,4 @@ def large_swing_warning(values, model, amplitudes, period_drift, period_drift_si
             f"%, {100 * expected:+.2g} % expected for a swing of {high:.3g} rad): the geometry "
             f"of sin(theta) alone makes viscous damping {geometric:.3g} times faster at the "
             f"largest amplitude than at the smallest, and {found}. If the signal is a "
-            "pendulum's angle, fit it with --pendulum")
+            "pendulum's angle, fit it with `pendulum`")
