@@ -12,6 +12,7 @@ from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
+from mcfit.options import FIT_METHODS
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "crop_record", "failed_analysis",
@@ -19,7 +20,7 @@ __all__ = ["METHODS", "Analysis", "analyse_record", "crop_record", "failed_analy
 
 # How the coefficients are fitted: "auto" takes the waveform fit only where the averaged
 # law's bias would be a noticeable part of the statistical error.
-METHODS = ("auto", "turning-points", "waveform")
+METHODS = FIT_METHODS
 
 
 @dataclass(frozen=True)

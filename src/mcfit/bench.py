@@ -49,6 +49,7 @@ import numpy as np
 
 from mcfit import decay, motion
 from mcfit.bounds import waveform_crlb
+from mcfit.options import BENCH_SECTIONS
 
 __all__ = [
     "SECTIONS",
@@ -77,7 +78,7 @@ __all__ = [
     "run",
 ]
 
-SECTIONS = ("integrators", "fitting", "verdicts", "methods", "throughput")
+SECTIONS = BENCH_SECTIONS
 
 # The common grid on which every integrator is compared with the reference (a divisor of
 # every fixed step's steps per period, so simulate_record samples the steps without

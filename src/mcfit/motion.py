@@ -33,6 +33,7 @@ from scipy.integrate import solve_ivp
 from scipy.interpolate import CubicHermiteSpline
 
 from mcfit import decay
+from mcfit.options import SIMULATE_METHODS
 
 __all__ = [
     "METHODS",
@@ -51,7 +52,7 @@ __all__ = [
     "simulate_record",
 ]
 
-METHODS = ("auto", "averaged", "cromer-euler", "symplectic", "accurate")
+METHODS = SIMULATE_METHODS
 
 # max|x_averaged - x_true| / y0 = AVERAGED_ERROR_CONSTANT / Q(y0) at most, measured against
 # the accurate integrator (tests/test_motion.py::test_averaged_error_constant) for Coulomb,

@@ -32,14 +32,13 @@ import numpy as np
 import pandas as pd
 
 from mcfit.errors import InputError, UsageError
+from mcfit.options import DOMAINS, KINDS
 from mcfit.record import Record, detect_kind
 
 __all__ = ["Record", "read_record", "read_records", "TEXT_EXTENSIONS", "EXCEL_EXTENSIONS"]
 
 TEXT_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat")
 EXCEL_EXTENSIONS = (".xlsx", ".xlsm")
-KINDS = ("waveform", "turning-points")
-DOMAINS = ("time", "cycle")
 
 # Bytes sniffed to choose separator, decimal mark, header and columns.
 _SNIFF_BYTES = 1 << 20

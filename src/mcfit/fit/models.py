@@ -10,6 +10,7 @@ from __future__ import annotations
 import itertools
 
 from mcfit.errors import FitError
+from mcfit.options import CRITERIA
 
 __all__ = ["TERMS", "NONE", "POWER", "MODELS", "REGIME_NAMES", "CRITERIA", "terms_of",
            "parse_model", "regime_list"]
@@ -21,7 +22,6 @@ POWER = "power"  # dy/dt = -k*y**n, fitted only when asked for
 MODELS = (NONE,) + tuple("".join(s) for n in (1, 2, 3)
                          for s in itertools.combinations(TERMS, n))
 REGIME_NAMES = {"a": "fluid", "b": "hysteretic", "c": "coulomb"}
-CRITERIA = ("aicc", "bic")
 
 
 def terms_of(model: str) -> str:
