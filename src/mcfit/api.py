@@ -93,7 +93,7 @@ def analyse_file(path, **options) -> Analysis:
 
 def analyse_files(paths, *, jobs=1, **options):
     """Every record of ``paths`` (files or directories; every run of a multi-run file) as
-    a pandas DataFrame with the columns of ``--format csv``, one row per record, in input
+    a pandas DataFrame with the command line's CSV columns, one row per record, in input
     order; ``jobs`` worker processes."""
     import csv
     import io
