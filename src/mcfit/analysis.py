@@ -57,13 +57,9 @@ class Analysis:
     def turning_points(self):
         """The turning points as a pandas DataFrame: t, amplitude, sigma, used, why not
         (``excluded_reason``) and the fitted envelope, as the command line writes them."""
-        import pandas as pd
+        from mcfit.api import turning_points_frame
 
-        from mcfit.report import TURNING_POINT_COLUMNS, turning_points_table
-
-        table = pd.DataFrame(turning_points_table(self), columns=TURNING_POINT_COLUMNS)
-        return table.drop(columns="source").astype({"amplitude": float, "sigma": float,
-                                                    "envelope": float})
+        return turning_points_frame(self)
 
     def figure(self, title=None):
         """The report figure (a matplotlib Figure; nothing is shown or saved)."""
@@ -75,15 +71,10 @@ class Analysis:
     def plot(self, ax=None):
         """The record, its turning points and the fitted envelope on ``ax`` (a new figure's
         axes when None); returns the axes."""
-        from mcfit.plots import draw_record, record_view
+        from mcfit.plots import plot_record
 
         self._check_fitted()
-        if ax is None:
-            from matplotlib.figure import Figure
-
-            ax = Figure(figsize=(7, 4), layout="constrained").add_subplot()
-        draw_record(ax, record_view(self, self.source), self.fit)
-        return ax
+        return plot_record(self, ax)
 
     def _check_fitted(self):
         if self.status != "ok" or self.fit is None:

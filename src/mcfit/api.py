@@ -25,7 +25,7 @@ from mcfit.analysis import Analysis, analyse_record
 from mcfit.errors import UsageError
 from mcfit.record import Record, detect_kind
 
-__all__ = ["analyse", "analyse_file", "analyse_files"]
+__all__ = ["analyse", "analyse_file", "analyse_files", "turning_points_frame"]
 
 READ_OPTIONS = ("time_col", "signal_col", "sheet", "rate", "input", "domain", "run",
                 "angle_from")
@@ -114,6 +114,18 @@ def analyse_files(paths, *, jobs=1, **options):
     text = report.csv_header(bootstrap) + "".join(rows)
     return pd.read_csv(io.StringIO(text), quoting=csv.QUOTE_MINIMAL, keep_default_na=False,
                        na_values=[""])
+
+
+def turning_points_frame(analysis: Analysis):
+    """The turning points of ``analysis`` as a pandas DataFrame: t, amplitude, sigma, used,
+    why not (``excluded_reason``) and the fitted envelope."""
+    import pandas as pd
+
+    from mcfit.report import TURNING_POINT_COLUMNS, turning_points_table
+
+    table = pd.DataFrame(turning_points_table(analysis), columns=TURNING_POINT_COLUMNS)
+    return table.drop(columns="source").astype({"amplitude": float, "sigma": float,
+                                                "envelope": float})
 
 
 def _taken(options, names):

@@ -17,7 +17,8 @@ from mcfit import decay
 from mcfit.files import replace_atomically, temporary_beside
 from mcfit.fit import NONE, POWER, REGIME_NAMES, DecayFit, PowerLawFit
 
-__all__ = ["RecordView", "record_view", "report_figure", "draw_record", "save_figure"]
+__all__ = ["RecordView", "record_view", "report_figure", "draw_record", "plot_record",
+           "save_figure"]
 
 _SINGLE_STYLE = {"a": ("tab:orange", "fluid only (a)"), "b": ("tab:green", "hysteretic only (b)"),
                  "c": ("tab:purple", "Coulomb only (c)")}
@@ -64,6 +65,14 @@ def record_view(analysis, title: str) -> RecordView:
                       used=np.asarray(turning.used), time_label=time_label,
                       signal_label=record.signal_unit or record.signal_column or "signal",
                       signal_unit=record.signal_unit or "U")
+
+
+def plot_record(analysis, ax=None):
+    """:func:`draw_record` of an analysis on ``ax`` (a new figure's axes when None)."""
+    if ax is None:
+        ax = Figure(figsize=(7, 4), layout="constrained").add_subplot()
+    draw_record(ax, record_view(analysis, analysis.source), analysis.fit)
+    return ax
 
 
 def report_figure(view: RecordView, fit: DecayFit) -> Figure:

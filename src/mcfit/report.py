@@ -133,6 +133,8 @@ def to_json_dict(analysis: Analysis) -> dict:
     if turning is not None:
         out["turning_points_excluded"] = _excluded_counts(turning)
         out["period_drift"] = _number(turning.period_drift)
+        # Where the free decay starts, when the record begins held, driven or settling.
+        out["release_time"] = _number(getattr(turning, "release_time", None))
         out["notes"] = list(getattr(record, "notes", ())) + list(turning.notes)
     elif record is not None:
         out["notes"] = list(record.notes)

@@ -26,7 +26,8 @@ Method for a waveform x(t):
    the crest, with variance ``2*sigma_x**2/m`` for ``m`` samples (THEORY.md section 7). A
    magnitude ``sqrt(A**2 + B**2)`` would be biased upwards near the noise. Amplitudes of
    crests in the noise can be negative.
-6. Clipped crests, half-cycles broken by gaps, a floor of vibration the decay sinks into,
+6. Clipped crests, half-cycles broken by gaps, a start before the free decay (the
+   oscillator held still, driven or settling), a floor of vibration the decay sinks into,
    and the tail after the oscillation is lost in white noise are excluded and reported;
    beating, growth and too few turning points raise :class:`RecordError`.
 
@@ -39,7 +40,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import ndimage, special
+from scipy import ndimage, special, stats
 
 from mcfit.errors import RecordError
 from mcfit.hum import find_steady_line, subtract_steady_line
@@ -86,7 +87,8 @@ class TurningPoints:
     used : ndarray of bool, shape (k,)
         The points a fit should use.
     excluded_reason : tuple of str
-        "" for used points, else "noise floor", "clipped", "gap" or "edge".
+        "" for used points, else "before release", "noise floor", "clipped", "gap" or
+        "edge".
     period : float
         Oscillation period from the turning-point spacing (NaN if unknown).
     period_sigma : float
@@ -105,6 +107,11 @@ class TurningPoints:
         Amplitude level of the noise floor (0 if none was found).
     noise_floor_time : float
         Time from which the tail was excluded as noise floor (NaN if none).
+    release_time : float
+        Start of the free decay when the record starts before it: where a signal held
+        still starts to move, or the first crest of the decay after amplitudes rising or
+        flat (driven or settling). The turning points before it are excluded as "before
+        release". NaN when the record decays freely from its start.
     gaps : tuple of (float, float)
         Start and end times of gaps in the record.
     domain : {"time", "cycle"}
@@ -126,6 +133,7 @@ class TurningPoints:
     noise_sigma: float = float("nan")
     noise_floor: float = 0.0
     noise_floor_time: float = float("nan")
+    release_time: float = float("nan")
     gaps: tuple[tuple[float, float], ...] = ()
     domain: str = "time"
     notes: tuple[str, ...] = field(default=())
@@ -158,6 +166,7 @@ class TurningPoints:
             "noise_sigma": number(self.noise_sigma),
             "noise_floor": number(self.noise_floor),
             "noise_floor_time": number(self.noise_floor_time),
+            "release_time": number(self.release_time),
             "gaps": [[float(a), float(b)] for a, b in self.gaps],
             "domain": self.domain,
             "notes": list(self.notes),
@@ -213,13 +222,13 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     finite = np.isfinite(x)
     if not finite.any():
         raise RecordError(f"the signal of {source} is all NaN. Choose the signal column with "
-                          "--signal-col.")
+                          "`signal_col`.")
     if not np.all(np.isfinite(t)):
         raise RecordError(f"the time of {source} has missing values. Remove those rows or "
-                          "use --rate HZ.")
+                          "use `rate=HZ`.")
     if t.size > 1 and not np.all(np.diff(t) > 0):
         raise RecordError(f"the time of {source} does not increase. Sort the record or use "
-                          "--rate HZ.")
+                          "`rate=HZ`.")
     notes = []
     if not finite.all():
         tf, xf = t[finite], x[finite]
@@ -231,7 +240,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
                           "cycles of at least 8 samples each.")
     if np.ptp(xf) == 0:
         raise RecordError(f"the signal of {source} is constant ({xf[0]:g}). Choose the signal "
-                          "column with --signal-col.")
+                          "column with `signal_col`.")
 
     steps = np.diff(tf)
     dt = float(np.median(steps))
@@ -266,12 +275,14 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
 
     gamma = np.zeros((2, centres.size))  # decay rate and its slope at each crest
     valid = np.ones(centres.size, dtype=bool)
+    held = _held_until(tf, xf, period, noise)  # crests before it count nowhere
     for refinement in range(_REFINE_PASSES):
         half = _local_half_periods(centres, period, valid)
         fit = _fit_windows(tf, xf, centres, signs, half, gamma, e0, e1, t_ref)
         # Equilibrium update from the alternation of maxima and minima; flattened crests
         # would bias it.
-        fit.valid &= ~_clipped(fit, signs)
+        fit.valid &= ~_clipped(fit, signs) & (np.arange(centres.size) >= _held_crests(
+            centres, held, period))
         delta0, delta1 = _equilibrium_correction(centres, fit, half, t_ref)
         e0, e1 = e0 + delta0, e1 + delta1
         settled = refinement > 0 and _shifts_within_noise(fit, half, noise)
@@ -293,11 +304,17 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     magnitude = np.abs(fit.y)
     magnitude_sigma = _amplitude_sigma(noise_sigma, fit.gain)
     measured = fit.valid & ~_clipped(fit, signs)
-    floor_level, floor_start = _vibration_floor(centres, magnitude, noise_sigma, fit, measured)
+    release_time, free, release_cause = _release(held, centres, signs, magnitude,
+                                                 magnitude_sigma, measured, period)
+    after_release = np.arange(centres.size) >= free
+    floor_level, floor_start = _vibration_floor(
+        centres, signs, magnitude, magnitude_sigma, fit, measured & after_release,
+        noise_sigma=noise_sigma, period=period, t_end=tf[-1])
     before_floor = np.arange(centres.size) < (centres.size if floor_start is None else floor_start)
+    in_decay = after_release & before_floor
     crest_times = centres + np.where(fit.valid, fit.shift, 0.0)
     period, period_sigma, drift, drift_sigma = _period_and_drift(
-        crest_times, signs, magnitude, measured & before_floor, period,
+        crest_times, signs, magnitude, measured & in_decay, period,
         _phase_weights(magnitude, magnitude_sigma))
 
     # Crest times from the phase of all crests, continued to the end of the decay, and
@@ -308,9 +325,8 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     half = _local_half_periods(centres, period, fit.valid)
     weights = np.where(measured, _phase_weights(magnitude, magnitude_sigma), 0.0)
     crests, crest_signs, phase_variance, phase_lost = _crest_sequence(
-        centres[:end] + np.where(fit.valid, fit.shift, 0.0)[:end], signs[:end], half[:end],
-        weights[:end], limit)
-    reliable = measured & before_floor & (magnitude > 5 * magnitude_sigma)
+        crest_times[free:end], signs[free:end], half[free:end], weights[free:end], limit)
+    reliable = measured & in_decay & (magnitude > 5 * magnitude_sigma)
     crest_gamma = _decay_rates_at(crests, centres, magnitude, np.pi / half, reliable)
     crest_half = _local_half_periods(crests, period, np.ones(crests.size, dtype=bool))
     projected = _fit_windows(tf, xf, crests, crest_signs, crest_half, crest_gamma, e0, e1, t_ref)
@@ -341,14 +357,17 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     reasons = np.array([""] * crests.size, dtype=object)
     reasons[~projected.complete] = np.where(projected.edge[~projected.complete], "edge", "gap")
     reasons[(reasons == "") & _clipped(projected, crest_signs)] = "clipped"
-    if floor_start is not None:  # the crests in the floor, with their magnitudes
-        crests = np.concatenate([crests, centres[floor_start:]])
-        crest_signs = np.concatenate([crest_signs, signs[floor_start:]])
-        y = np.concatenate([y, magnitude[floor_start:]])
-        log_step = np.concatenate([log_step, np.full(centres.size - floor_start, np.nan)])
-        sigma_y = np.concatenate([sigma_y, magnitude_sigma[floor_start:]])
-        reasons = np.concatenate([reasons, np.full(centres.size - floor_start, "noise floor",
-                                                   dtype=object)])
+    # The crests before the release and in the floor, with their magnitudes.
+    parts = [_excluded_crests(slice(0, free), centres, signs, magnitude, magnitude_sigma,
+                              "before release"),
+             (crests, crest_signs, y, sigma_y, log_step, reasons)]
+    if floor_start is not None:
+        parts.append(_excluded_crests(slice(floor_start, None), centres, signs, magnitude,
+                                      magnitude_sigma, "noise floor"))
+    crests, crest_signs, y, sigma_y, log_step, reasons = (np.concatenate(c)
+                                                          for c in zip(*parts))
+    if np.isfinite(release_time):
+        notes.append(_release_note(release_time, free, release_cause))
     if np.any(reasons == "clipped"):
         n_clip = int(np.count_nonzero(reasons == "clipped"))
         notes.append(f"{n_clip} clipped (saturated) extrema excluded")
@@ -414,7 +433,8 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         period_drift_sigma=drift_sigma,
         equilibrium=float(e0 + e1 * (t[0] - t_ref)), equilibrium_drift=float(e1),
         noise_sigma=float(noise_sigma), noise_floor=float(floor_level),
-        noise_floor_time=floor_time, gaps=tuple(gaps), domain=domain, notes=tuple(notes),
+        noise_floor_time=floor_time, release_time=release_time, gaps=tuple(gaps),
+        domain=domain, notes=tuple(notes),
         steady_line=removed)
 
 
@@ -1178,20 +1198,276 @@ def _amplitude_sigma(noise_sigma, gain):
     return sigma
 
 
-def _vibration_floor(centres, magnitude, noise_sigma, fit, candidate):
+# A record may start before the free decay: the oscillator held still, or driven or still
+# settling. A still stretch scatters by less than _HELD_NOISE noise sigmas in each
+# half-period, and is left where the signal first moves _DEPARTURE_Z noise sigmas from
+# its level. A driven or settling start has amplitudes rising or flat (slope above
+# -_FLAT_Z standard errors) over _MIN_BEFORE crests at least, then falling more steeply
+# by _RELEASE_Z standard errors (judged over _KNEE_CRESTS crests either side, and 2 and 4
+# times as many: _KNEE_SCALES sizes), within the first _RELEASE_SEARCH crests.
+_HELD_NOISE = 2.0
+_DEPARTURE_Z = 5.0
+_FLAT_Z = 3.0
+_RELEASE_Z = 5.0
+_MIN_BEFORE = 3
+_KNEE_CRESTS = 4
+_KNEE_SCALES = 3
+_RELEASE_SEARCH = 400
+# Third differences of crest magnitudes needed to measure their scatter.
+_SCATTER_DIFFERENCES = 16
+# The decay after a release must not rise again while above this many sigma.
+_RISE_SNR = 10.0
+# A crest is excluded when its half-cycle starts more than this many half-periods before
+# the release.
+_RELEASE_SLACK = 0.1
+_RELEASE_CAUSES = {"held": "signal held still", "knee": "amplitude rising or flat"}
+
+
+def _release(held, centres, signs, magnitude, magnitude_sigma, measured, period):
+    """(release time, index of the first crest of the free decay, cause), or (NaN, 0, "")
+    for a record that decays freely from its start.
+
+    Held: the record starts still and then swings at ``held`` (see _held_until); the
+    crests whose half-cycle begins before are excluded. Driven or settling: the amplitude
+    rises or stays flat over the first crests, then falls; the decay starts at the crest
+    where it turns (see _knee). Both can apply (held, then settling).
+    """
+    first = _held_crests(centres, held, period)
+    index = np.flatnonzero(measured[first:]) + first
+    if index.size >= MIN_TURNING_POINTS + 2 * _KNEE_CRESTS:
+        knee = _knee(centres[index], magnitude[index], signs[index],
+                     _release_scatter(magnitude[index], signs[index], magnitude_sigma[index]))
+        if knee:
+            return float(centres[index[knee]]), int(index[knee]), _RELEASE_CAUSES["knee"]
+    if held is not None:
+        return float(held), first, _RELEASE_CAUSES["held"]
+    return float("nan"), 0, ""
+
+
+def _held_crests(centres, held, period):
+    """Number of crests whose half-cycle starts before the release at ``held`` (0 for
+    None)."""
+    if held is None:
+        return 0
+    return int(np.searchsorted(centres - 0.25 * period, held - _RELEASE_SLACK * period / 2))
+
+
+def _held_until(t, x, period, noise):
+    """Time at which a record that starts still (only noise about a level, for a
+    half-period at least) starts to move, or None."""
+    if not noise > 0:
+        return None
+    start = stop = 0
+    while True:  # half-period windows, while they are still
+        end = int(np.searchsorted(t, t[stop] + 0.5 * period))
+        if end >= t.size or end - stop < 3 or np.std(x[stop:end]) > _HELD_NOISE * noise:
+            break
+        start, stop = stop, end
+    if stop == 0:
+        return None
+    level = np.median(x[:stop])
+    away = np.abs(x[start:] - level) > _DEPARTURE_Z * noise
+    moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one noise spike
+    return float(t[start + moving[0]]) if moving.size else None
+
+
+def _release_scatter(values, signs, sigma):
+    """Standard deviation of the crest magnitudes: robust third differences along the
+    maxima and along the minima (so unequal swings up and down do not count); what the
+    sample noise gives when there are too few crests."""
+    d3 = np.concatenate([np.diff(values[signs == s], 3) for s in (-1, 1)])
+    if d3.size < _SCATTER_DIFFERENCES:
+        return float(np.median(sigma))
+    return float(stats.median_abs_deviation(d3, scale="normal") / np.sqrt(20.0))
+
+
+def _knee(times, values, signs, sigma):
+    """Index of the first crest of the free decay after a rising or flat start, or 0.
+
+    A knee between two crests is judged from L crests on either side (L = _KNEE_CRESTS
+    times 1, 2, 4, ..., _KNEE_SCALES sizes): a straight line through each (plus a term
+    for maxima against minima), joined at the knee. It counts when the amplitude does not
+    fall before the knee (slope above -_FLAT_Z standard errors), falls after it, the
+    slope drops across it by _RELEASE_Z standard errors (a free decay falls most steeply
+    at its start), and a parabola fits those crests worse by _RELEASE_Z**2 in chi-square
+    (a slow beat bends, it has no knee). The most significant drop wins; the knees tried
+    end where the amplitude has fallen clearly below its highest so far. The decay then
+    starts at the crest found by _first_free_crest, unless the amplitude falls before it,
+    rises again after it, or bends downwards just after it (a beat, not a release).
+    """
+    best, best_z, best_window = 0, _RELEASE_Z, None
+    for k in range(_MIN_BEFORE, _search_end(values, signs, sigma) + 1):
+        knee = 0.5 * (times[k - 1] + times[k])
+        for scale in range(_KNEE_SCALES):
+            width = _KNEE_CRESTS << scale
+            window = slice(max(0, k - width), min(values.size, k + width))
+            z = _knee_significance(times[window] - knee, values[window], signs[window],
+                                   sigma)
+            if z > best_z:
+                best, best_z, best_window = k, z, window
+    if best == 0:
+        return 0
+    first = _first_free_crest(times, values, signs, sigma,
+                              _knee_position(times, values, signs, best_window),
+                              best_window.stop - 1)
+    free = (_flat_before(times, values, signs, sigma, first)
+            and not _rises_again(values[first:], signs[first:], sigma)
+            and _convex_after(times, values, signs, sigma, first))
+    return first if free else 0
+
+
+def _flat_before(times, values, signs, sigma, first):
+    """Whether the amplitude does not fall over the crests before ``first`` (a straight
+    line, plus a term for maxima against minima, above -_FLAT_Z standard errors)."""
+    before = slice(0, first)
+    s = times[before] - times[first]
+    design = np.column_stack([np.ones_like(s), signs[before], s])
+    solution, _, covariance = _crest_fit(design, values[before], sigma)
+    return bool(solution[2] > -_FLAT_Z * np.sqrt(covariance[2, 2]))
+
+
+def _rises_again(values, signs, sigma):
+    """Whether the amplitude, while above _RISE_SNR sigma, rises again by _RELEASE_Z sigma
+    (the mean of a maximum and a minimum above its lowest before): a beat or a
+    disturbance, not a free decay after a release."""
+    faint = np.flatnonzero(values < _RISE_SNR * sigma)
+    pairs = _pair_means(values[:faint[0] if faint.size else values.size], signs)
+    return bool(np.any(pairs - np.fmin.accumulate(pairs) > _RELEASE_Z * sigma))
+
+
+def _pair_means(values, signs):
+    """Means of neighbouring crests, a maximum and a minimum (so that swings of unequal
+    size up and down cancel); NaN where two neighbours have the same sign."""
+    alternate = signs[1:values.size] != signs[:values.size - 1]
+    return np.where(alternate, 0.5 * (values[1:] + values[:-1]), np.nan)
+
+
+def _convex_after(times, values, signs, sigma, first):
+    """Whether the amplitude bends upwards (or not clearly downwards) over the
+    2*_KNEE_CRESTS crests from ``first``, as a free decay's does: the top of a slow beat
+    bends downwards."""
+    after = slice(first, first + 2 * _KNEE_CRESTS)
+    s = times[after] - times[first]
+    design = np.column_stack([np.ones_like(s), signs[after], s, s**2])
+    solution, _, covariance = _crest_fit(design, values[after], sigma)
+    return bool(solution[3] > -_FLAT_Z * np.sqrt(covariance[3, 3]))
+
+
+def _knee_position(times, values, signs, window):
+    """Index of the first crest after the best-fitting knee in ``window``: a line before
+    it joined to a parabola after it (the decay bends), plus a term for maxima against
+    minima."""
+    t, y, sg = times[window], values[window], signs[window]
+    candidates = range(_MIN_BEFORE, t.size - _MIN_BEFORE + 1)
+    chi2 = []
+    for k in candidates:
+        s = t - 0.5 * (t[k - 1] + t[k])
+        after = np.maximum(s, 0.0)
+        design = np.column_stack([np.ones_like(s), sg, np.minimum(s, 0.0), after, after**2])
+        chi2.append(_crest_fit(design, y, 1.0)[1])
+    return window.start + candidates[int(np.argmin(chi2))]
+
+
+def _first_free_crest(times, values, signs, sigma, first, last):
+    """The first crest from ``first`` to ``last`` that starts the decay (else ``first``):
+    the 2*_KNEE_CRESTS crests after it decay (a straight line in the logarithm of the
+    amplitude, plus a term for maxima against minima, falling by _FLAT_Z standard
+    errors), and it lies on that line continued back (a crest of a held, driven or
+    rising start lies below it by more than _FLAT_Z standard errors)."""
+    span = 2 * _KNEE_CRESTS
+    for k in range(first, min(last, values.size - span) + 1):
+        after = slice(k + 1, k + 1 + span)
+        s = times[after] - times[k]
+        weight = values[after] / sigma
+        design = np.column_stack([np.ones_like(s), signs[after], s])
+        solution, _, covariance = _crest_fit(design * weight[:, None],
+                                             np.log(values[after]) * weight, 1.0)
+        at_k = np.array([1.0, signs[k], 0.0])
+        spread = np.sqrt(at_k @ covariance @ at_k + (sigma / values[k]) ** 2)
+        decays = solution[2] < -_FLAT_Z * np.sqrt(covariance[2, 2])
+        if decays and np.log(values[k]) > at_k @ solution - _FLAT_Z * spread:
+            return k
+    return first
+
+
+def _search_end(values, signs, sigma):
+    """Last crest that may start the free decay: before the mean of a maximum and a
+    minimum falls _RELEASE_Z sigma below the highest so far, with _KNEE_CRESTS crests
+    after it, within the first _RELEASE_SEARCH."""
+    pairs = _pair_means(values, signs)
+    fallen = np.flatnonzero(pairs < np.fmax.accumulate(pairs) - _RELEASE_Z * sigma)
+    end = int(fallen[0]) + 1 if fallen.size else values.size
+    return min(end, values.size - _KNEE_CRESTS, _RELEASE_SEARCH)
+
+
+def _crest_fit(design, y, sigma):
+    """(solution, chi-square, covariance) of a least-squares fit with errors sigma."""
+    solution = np.linalg.lstsq(design, y, rcond=None)[0]
+    residual = y - design @ solution
+    return (solution, float(residual @ residual) / sigma**2,
+            sigma**2 * np.linalg.pinv(design.T @ design))
+
+
+def _knee_significance(s, y, signs, sigma):
+    """Drop of the slope across s = 0 in standard errors (see _knee), or 0."""
+    ones = np.ones_like(s)
+    solution, chi2, covariance = _crest_fit(
+        np.column_stack([ones, signs, np.minimum(s, 0.0), np.maximum(s, 0.0)]), y, sigma)
+    slope_before, slope_after = solution[2], solution[3]
+    spread = covariance[2, 2] + covariance[3, 3] - 2.0 * covariance[2, 3]
+    if not (spread > 0 and slope_after < -_RELEASE_Z * np.sqrt(covariance[3, 3])
+            and slope_before > -_FLAT_Z * np.sqrt(covariance[2, 2])):
+        return 0.0
+    smooth = _crest_fit(np.column_stack([ones, signs, s, s**2]), y, sigma)[1]
+    if smooth - chi2 < _RELEASE_Z**2:
+        return 0.0
+    return float((slope_before - slope_after) / np.sqrt(spread))
+
+
+def _release_note(time, count, cause):
+    excluded = (f"{count} turning point{'s' if count != 1 else ''} before it excluded"
+                if count else "no turning point before it")
+    return f"release at t = {time:.6g}: {excluded} ({cause})"
+
+
+def _excluded_crests(select, centres, signs, magnitude, magnitude_sigma, reason):
+    """Columns (t, sign, y, sigma, log_step, reason) of the crests ``select``, excluded for
+    ``reason``, with the magnitudes of their half-cycle fits."""
+    t = centres[select]
+    return (t, signs[select], magnitude[select], magnitude_sigma[select],
+            np.full(t.size, np.nan), np.full(t.size, reason, dtype=object))
+
+
+# Significance (standard errors) of the tests for a floor, the fewest crests in the
+# stretch at the end of the record that must not decay, the fraction of the floor's
+# half-periods in which a crest must be found, and the top of the amplitudes (in floor
+# levels) whose decay rate the floor's is compared with.
+_FLOOR_Z = 3.0
+_FLOOR_END_CRESTS = 5
+_FLOOR_DENSITY = 0.5
+_FLOOR_REACH = 4.0
+
+
+def _vibration_floor(centres, signs, magnitude, magnitude_sigma, fit, candidate, *,
+                     noise_sigma, period, t_end):
     """(floor level, index of the first crest in the floor) or (0.0, None).
 
     A floor of vibration, hum or quantization: the envelope stops decaying at the end of
     the record, well below its start and well above what white noise gives a half-cycle
-    fit: the tail within FLOOR_FACTOR of its final level decays at less than 0.3 times the
-    rate just before it. (A decay into white noise is no floor: its crests are kept, as
-    projections, until the oscillation is lost in the noise; see _sinks_below_noise.)
+    fit. The tail within FLOOR_FACTOR of its final level is the floor when its crests go
+    on to the end of the record (at least _FLOOR_DENSITY of its half-periods have one),
+    the end of the record (the tail's second half) does not decay, and the tail decays
+    more slowly than the law dy/dt = -c - b*y - a*y**2 allows after the crests before it
+    (those below _FLOOR_REACH times the floor), both by _FLOOR_Z standard errors of the
+    scatter measured there. A slower decay that still shows above the noise is no floor,
+    nor are swings of unequal size up and down (a sign term takes them out). (A decay
+    into white noise is no floor either: its crests are kept, as projections, until the
+    oscillation is lost in the noise; see _sinks_below_noise.)
     """
     index = np.flatnonzero(candidate)
     if index.size < 2 * MIN_TURNING_POINTS:
         return 0.0, None
     values = magnitude[index]
-    times = centres[index]
     smooth = _running_median(values, max(5, (index.size // 30) | 1))
     white = noise_sigma * np.sqrt(2.0 * np.median(fit.gain[index]))
     m = max(5, index.size // 8)
@@ -1203,14 +1479,49 @@ def _vibration_floor(centres, magnitude, noise_sigma, fit, candidate):
         return 0.0, None
     start = above[-1] + 1
     length = index.size - start
-    if length < 5 or start < 5:
+    if length < 2 * _FLOOR_END_CRESTS or start < 5:
         return 0.0, None
-    before = slice(max(0, start - max(length, m)), start)
-    rate_in = np.polyfit(times[start:], np.log(values[start:]), 1)[0]
-    rate_before = np.polyfit(times[before], np.log(values[before]), 1)[0]
-    if rate_before < 0 and rate_in > 0.3 * rate_before:
+    if length < _FLOOR_DENSITY * (t_end - centres[index[start]]) / (0.5 * period):
+        return 0.0, None  # crests found here and there in the noise: no steady floor
+    high = np.flatnonzero(smooth[:start] >= _FLOOR_REACH * final)
+    first = max(0, min(start - m, int(high[-1]) if high.size else 0))
+    rate_end, sigma_end, _ = _log_decay_rate(
+        index[-max(_FLOOR_END_CRESTS, length // 2):], centres, signs, magnitude,
+        magnitude_sigma)
+    rate_in, sigma_in, level_in = _log_decay_rate(index[start:], centres, signs, magnitude,
+                                                  magnitude_sigma)
+    rate_before, sigma_before, level_before = _log_decay_rate(
+        index[first:start], centres, signs, magnitude, magnitude_sigma)
+    # The slowest decay the law allows in the tail: all fluid, -d ln(y)/dt in proportion
+    # to y.
+    ratio = level_in / level_before
+    stopped = rate_end > -_FLOOR_Z * sigma_end
+    slower = rate_in - ratio * rate_before > _FLOOR_Z * np.hypot(sigma_in, ratio * sigma_before)
+    if stopped and slower:
         return final, int(index[start])
     return 0.0, None
+
+
+def _log_decay_rate(index, centres, signs, magnitude, magnitude_sigma):
+    """(d ln(y)/dt, its standard error, typical amplitude) over the crests ``index``: a
+    line in time plus a term for maxima against minima, so that swings of unequal size up
+    and down do not count as scatter. The error is from the scatter about the line, at
+    least what the sample noise gives."""
+    y = magnitude[index]
+    relative = magnitude_sigma[index] / y
+    s = centres[index] - np.mean(centres[index])
+    design = np.column_stack([np.ones_like(s), s, signs[index]])
+    if np.unique(signs[index]).size < 2:
+        design = design[:, :2]
+    solution, _, rank, _ = np.linalg.lstsq(design, np.log(y), rcond=None)
+    dof = index.size - rank
+    level = float(np.exp(solution[0]))
+    if dof < 1:
+        return float(solution[1]), float("inf"), level
+    residual = np.log(y) - design @ solution
+    scale = max(float(np.sqrt(residual @ residual / dof)), float(np.median(relative)))
+    covariance = np.linalg.pinv(design.T @ design)
+    return float(solution[1]), scale * float(np.sqrt(covariance[1, 1])), level
 
 
 # Crests per group in the test for a signal left in the tail.
@@ -1254,20 +1565,41 @@ def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
             f"the oscillation in {source} grows (amplitude {start:.3g} at t = "
             f"{centres[index[0]]:.4g} to {end:.3g} at t = {centres[index[-1]]:.4g}): this is "
             "not a free decay. Check the record, or cut it to the decaying part.")
+    k = _rise(smooth, noise, sigma_y[index], floor)
+    if k is not None:
+        dip = int(np.argmin(smooth[:k + 1]))
+        # A rise to the largest amplitude early on, with the decay undisturbed after it:
+        # the record starts before the free decay.
+        starts_late = (smooth[k] >= smooth[0] and 2 * k < smooth.size
+                       and _rise(smooth[k:], noise, sigma_y[index[k:]], floor) is None)
+        raise RecordError(
+            f"the amplitude in {source} falls to {smooth[dip]:.3g} at t = "
+            f"{centres[index[dip]]:.4g} and rises again to {smooth[k]:.3g} at t = "
+            f"{centres[index[k]]:.4g}: "
+            + _rise_advice(starts_late, centres[index[dip]], centres[index[k]]))
+
+
+def _rise(smooth, noise, sigma, floor):
+    """Index of the largest clear rise of the smoothed amplitudes after a fall, or None."""
     running_min = np.minimum.accumulate(smooth)
     rise = smooth - running_min
     # Crests in the noise can be <= 0: a rise from there is judged against the noise.
     k = int(np.argmax(rise / np.maximum(running_min, max(noise, 1e-300))))
     # Near the ends the median is the crest itself, often an edge-cut window: judge the
     # rise against that crest's own uncertainty when it is the larger.
-    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * max(noise, sigma_y[index[k]])
+    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * max(noise, sigma[k])
             and running_min[k] < smooth[0] and smooth[k] > 3 * floor):
-        dip = int(np.argmin(smooth[:k + 1]))
-        raise RecordError(
-            f"the amplitude in {source} falls to {running_min[k]:.3g} at t = "
-            f"{centres[index[dip]]:.4g} and rises again to {smooth[k]:.3g} at t = "
-            f"{centres[index[k]]:.4g}: beating of two modes, or a disturbance. Excite one mode "
-            "only, or cut the record before the rise.")
+        return k
+    return None
+
+
+def _rise_advice(starts_late, dip_time, peak_time):
+    """What a rise of the amplitude means, and what to do."""
+    if starts_late:
+        return ("the free decay starts at the rise (the oscillator was held, driven or "
+                f"disturbed before it). Fit from there with `start={peak_time:.4g}`.")
+    return ("beating of two modes, or a disturbance. Excite one mode only, or fit the "
+            f"record before the rise with `end={dip_time:.4g}`.")
 
 
 def _period_and_drift(centres, signs, y, used, period, weights=None):

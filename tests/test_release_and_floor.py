@@ -1,0 +1,227 @@
+"""A start before the free decay (held still, driven) and the noise floor at the end."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mcfit.analysis import analyse_record
+from mcfit.decay import amplitude
+from mcfit.errors import RecordError
+from mcfit.motion import simulate_record
+from mcfit.records import Record
+from mcfit.turning import find_turning_points, turning_points_from_table
+
+REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
+# y0, a, b, c: all three regimes, Q about 60 to 150 at a period of 1.
+LAW = (1.0, 0.02, 0.03, 0.002)
+RATE = 50.0
+
+
+def _noisy(x, seed, noise):
+    return x + np.random.default_rng(seed).normal(0.0, noise, x.size)
+
+
+def _held_record(seed, release=3.0, duration=40.0, noise=0.005, struck=False):
+    """Still (with noise) until ``release``, then a free decay of LAW: let go from its
+    largest swing (a pendulum held aside), or struck at rest (``struck``)."""
+    t = np.arange(0.0, duration, 1.0 / RATE)
+    s = np.clip(t - release, 0.0, None)
+    swing = np.sin if struck else np.cos
+    x = amplitude(s, *LAW) * swing(2 * np.pi * s)
+    x[t < release] = 0.0 if struck else LAW[0]
+    return t, _noisy(x + 0.2, seed, noise)
+
+
+def _driven_record(seed, ramp=5.0, duration=40.0, noise=0.005):
+    """Amplitude rising linearly for ``ramp`` cycles while driven, then a free decay."""
+    t = np.arange(0.0, duration, 1.0 / RATE)
+    envelope = np.where(t < ramp, LAW[0] * t / ramp, amplitude(np.clip(t - ramp, 0.0, None), *LAW))
+    return t, _noisy(envelope * np.sin(2 * np.pi * t) + 0.2, seed, noise)
+
+
+def _analysis(t, x):
+    analysis = analyse_record(Record(source="test.csv", t=t, x=x), model="abc",
+                              method="turning-points")
+    assert analysis.status == "ok", analysis.error
+    return analysis
+
+
+def _assert_law_recovered(fit):
+    for name, true in zip("abc", LAW[1:]):
+        assert abs(fit.values[name] - true) < 3 * fit.stderr[name], (name, fit.values)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("struck", [False, True], ids=["held-aside", "struck-at-rest"])
+def test_a_held_start_is_excluded_and_the_fit_starts_at_the_release(seed, struck):
+    analysis = _analysis(*_held_record(seed, struck=struck))
+    points = analysis.turning
+    assert abs(points.release_time - 3.0) < 1.0
+    assert not np.any(points.used & (points.t < 3.0))
+    before = np.array(points.excluded_reason) == "before release"
+    assert np.all(points.t[before] < 3.0)
+    assert any(n.startswith("release at t = ") and "signal held still" in n
+               for n in points.notes)
+    assert points.to_dict()["release_time"] == pytest.approx(points.release_time)
+    _assert_law_recovered(analysis.fit)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_driven_start_is_excluded_and_the_fit_starts_at_the_largest_crest(seed):
+    analysis = _analysis(*_driven_record(seed))
+    points = analysis.turning
+    assert abs(points.release_time - 5.0) < 1.0
+    before = np.array(points.excluded_reason) == "before release"
+    assert np.count_nonzero(before) >= 8 and np.all(points.t[before] < 5.0)
+    first = np.flatnonzero(points.used)[0]
+    assert points.y[first] == pytest.approx(np.max(points.y[points.used]), abs=0.01)
+    note = next(n for n in points.notes if n.startswith("release at t = "))
+    assert "turning points before it excluded (amplitude rising or flat)" in note
+    _assert_law_recovered(analysis.fit)
+
+
+def _asymmetric(x, up=1.15, down=0.87):
+    return np.where(x > 0, up * x, down * x)
+
+
+def _beat():
+    t = np.arange(0.0, 60.0, 1.0 / RATE)
+    x = np.exp(-0.03 * t) * (np.cos(2 * np.pi * t) + 0.05 * np.cos(2 * np.pi * 1.01 * t))
+    return t, _noisy(x, 3, 1e-3)
+
+
+def _unequal_swings():
+    t = np.arange(0.0, 60.0, 1.0 / RATE)
+    return t, _noisy(_asymmetric(amplitude(t, *LAW) * np.cos(2 * np.pi * t + 0.7)), 4, 0.01)
+
+
+def _noisy_high_q():
+    t = np.arange(0.0, 60.0, 1.0 / RATE)
+    return t, _noisy(np.exp(-0.005 * t) * np.cos(2 * np.pi * t), 5, 0.1)
+
+
+def _simulated(a, b, c, duration, noise):
+    return simulate_record(a, b, c, 1.0, 1.0, duration, RATE, noise=noise, offset=0.1,
+                           rng=np.random.default_rng(6))
+
+
+ORDINARY_DECAYS = {
+    "slow beat": _beat,
+    "unequal swings": _unequal_swings,
+    "noisy high Q": _noisy_high_q,
+    "viscous Q 3": lambda: _simulated(0, np.pi / 3, 0, 8, 1e-3),
+    "viscous Q 30": lambda: _simulated(0, np.pi / 30, 0, 30, 1e-2),
+    "viscous Q 300": lambda: _simulated(0, np.pi / 300, 0, 60, 1e-2),
+    "Coulomb to a stop": lambda: _simulated(0, 0, 0.1, 14, 1e-3),
+    "fluid": lambda: _simulated(0.3, 0, 0, 40, 1e-3),
+    "all three": lambda: _simulated(0.1, 0.1, 0.01, 30, 1e-2),
+}
+
+
+@pytest.mark.parametrize("name", ORDINARY_DECAYS)
+def test_no_release_in_an_ordinary_decay(name):
+    points = find_turning_points(*ORDINARY_DECAYS[name]())
+    assert np.isnan(points.release_time)
+    assert "before release" not in points.excluded_reason
+    assert not any("release" in n for n in points.notes)
+
+
+def _slowing_decay(seed, shape):
+    """A decay from 12 to 2.8 over 115 cycles that slows as it dies away (dy/dt = -k*y**3),
+    still far above the noise (0.1) at its end, with swings of equal or unequal size."""
+    t = np.arange(0.0, 46.0, 0.4 / 50)
+    k = (2.8**-2 - 12.0**-2) / (2 * t[-1])
+    x = (12.0**-2 + 2 * k * t) ** -0.5 * np.cos(2 * np.pi * t / 0.4)
+    return t, _noisy(_asymmetric(x) if shape == "asymmetric" else x, seed, 0.1)
+
+
+@pytest.mark.parametrize("seed, shape", [(1, "equal"), (5, "equal"), (1, "asymmetric")])
+def test_a_decay_still_above_the_noise_has_no_floor(seed, shape):
+    points = find_turning_points(*_slowing_decay(seed, shape))
+    assert np.isnan(points.noise_floor_time)
+    assert points.used.all()
+
+
+@pytest.mark.parametrize("shape", ["harmonic", "half-cycles"])
+def test_swings_of_unequal_size_up_and_down_are_no_floor(shape):
+    t = np.arange(0.0, 100.0, 1.0 / RATE)
+    envelope = amplitude(t, 10.0, 0.0, 0.005, 0.02624)  # 10 to 4, Coulomb and viscous
+    wave = (np.cos(2 * np.pi * t) + 0.1 * np.cos(4 * np.pi * t) if shape == "harmonic"
+            else _asymmetric(np.cos(2 * np.pi * t)))
+    points = find_turning_points(t, _noisy(envelope * wave, 7, 0.1))
+    assert np.isnan(points.noise_floor_time)
+    assert points.used.all()
+
+
+@pytest.mark.parametrize("ratio", [1.0, 1.37])
+def test_a_decay_into_a_steady_vibration_ends_at_the_floor(ratio):
+    t = np.arange(0.0, 100.0, 1.0 / RATE)
+    x = 10.0 * np.exp(-0.08 * t) * np.cos(2 * np.pi * t) + 0.5 * np.cos(
+        2 * np.pi * ratio * t + 0.3)
+    points = find_turning_points(t, _noisy(x, 8, 0.1))
+    assert points.noise_floor == pytest.approx(0.5, rel=0.2)
+    # The envelope meets 1.5 times the floor at 32 s and the floor itself at 37 s.
+    assert 30.0 < points.noise_floor_time < 50.0
+    assert "noise floor" in points.excluded_reason
+    assert not np.any(points.used & (points.t > points.noise_floor_time))
+
+
+def test_a_decay_into_white_noise_is_cut_where_it_is_lost():
+    t = np.arange(0.0, 100.0, 1.0 / RATE)
+    points = find_turning_points(t, _noisy(10.0 * np.exp(-0.1 * t) * np.cos(2 * np.pi * t),
+                                           2, 0.1))
+    sigma_y = np.median(points.sigma[points.used])
+    assert 40.0 < points.noise_floor_time < 75.0
+    assert 10.0 * np.exp(-0.1 * points.noise_floor_time) < 3 * sigma_y
+    assert not np.any(points.used & (points.t > points.noise_floor_time))
+
+
+def test_a_rise_at_the_start_advises_to_fit_from_it():
+    n = np.arange(40.0)
+    y = np.concatenate([[1.0, 0.5, 0.45, 0.6, 0.8, 1.2], 1.5 * np.exp(-0.05 * n)])
+    with pytest.raises(RecordError, match=r"free decay starts at the rise.*`start=6\b"):
+        turning_points_from_table(np.arange(y.size, dtype=float), y, domain="cycle")
+
+
+def test_a_rise_in_the_middle_advises_to_fit_up_to_it():
+    n = np.arange(40.0)
+    y = np.concatenate([np.exp(-0.05 * n[:20]), [0.6, 0.7, 0.8], 0.7 * np.exp(-0.05 * n)])
+    with pytest.raises(RecordError, match=r"beating of two modes.*`end=1[0-9]\b"):
+        turning_points_from_table(np.arange(y.size, dtype=float), y, domain="cycle")
+
+
+@pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")
+@pytest.mark.parametrize("path", [
+    "pendulum_cup/lab1_data.txt", "pendulum_cup/trial1_rawdata.txt",
+    "spring_mass_disk/molla_durissima_discopieno_14.91945_0.2016_1.csv"])
+def test_real_records_start_free_and_have_no_floor(path):
+    from mcfit.records import read_record
+    from mcfit.turning import turning_points_of
+    points = turning_points_of(read_record(REALDATA / path))
+    assert np.isnan(points.release_time)
+    assert np.isnan(points.noise_floor_time)
+
+
+def test_the_release_reaches_the_json_and_the_turning_points_file(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+
+    from mcfit.cli import cli
+
+    t, x = _driven_record(1)
+    record = tmp_path / "driven.csv"
+    record.write_text("t,x\n" + "".join(f"{a:.4f},{b:.6f}\n" for a, b in zip(t, x)))
+    points = tmp_path / "points.csv"
+    result = CliRunner().invoke(cli, [str(record), "--format", "json", "--method",
+                                      "turning-points", "--turning-points-out", str(points)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert 4.5 < data["release_time"] < 6.5
+    excluded = data["turning_points_excluded"]["before release"]
+    assert any(note.startswith("release at t = ") for note in data["notes"])
+    rows = [line.split(",") for line in points.read_text().splitlines()[1:]]
+    assert sum(row[5] == "before release" for row in rows) == excluded
