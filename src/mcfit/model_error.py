@@ -86,7 +86,7 @@ def _chain_bias(t, turning, fit, noise_stderr):
     times = t[t >= t0]
     theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
     v = fit.values
-    equilibrium = turning.equilibrium + turning.equilibrium_drift * (times - t[0])
+    equilibrium = turning.equilibrium_at(times)
     x = equilibrium + phase_plane_motion(times - t0, v["y0"], theta0, fit.omega, v["a"],
                                          v["b"], v["c"])[0]
     try:

@@ -52,9 +52,8 @@ def record_view(analysis, title: str) -> RecordView:
     record, turning = analysis.record, analysis.turning
     if record.kind == "waveform":
         t, x = record.t, record.x
-        equilibrium = turning.equilibrium + turning.equilibrium_drift * (t - t[0])
-        turning_x = (turning.equilibrium + turning.equilibrium_drift * (turning.t - t[0])
-                     + turning.sign * turning.y)
+        equilibrium = turning.equilibrium_at(t)
+        turning_x = turning.equilibrium_at(turning.t) + turning.sign * turning.y
     else:
         t = x = equilibrium = None
         turning_x = turning.y

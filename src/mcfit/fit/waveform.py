@@ -125,7 +125,7 @@ def _window(t, x, turning, start_fit):
     t0, t_end = float(turning.t[used[0]]), float(turning.t[used[-1]])
     window = (t >= t0) & (t <= t_end) & np.isfinite(x)
     theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
-    e0 = turning.equilibrium + turning.equilibrium_drift * (t0 - t[0])
+    e0 = turning.equilibrium_at(t0)
     return t[window], x[window], t0, [theta0, start_fit.omega, e0, turning.equilibrium_drift]
 
 

@@ -1,0 +1,173 @@
+"""Range checks, the scatter of the amplitudes, and the checks that the record decays."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mcfit.errors import RecordError
+from mcfit.turning.common import SAMPLES_PER_CYCLE, _robust_sigma, _running_median
+from mcfit.turning.result import MIN_TURNING_POINTS
+
+# Larger times or signal values overflow float64 once squared and summed.
+_LARGEST_VALUE = 1e30
+# Amplitudes that scatter by more than this factor times what the sample noise gives have
+# the excess added to their sigma.
+_EXCESS_SCATTER = 1.5
+
+
+def _checked_samples(t, x, source):
+    """(t, tf, xf): the time as float64 and the finite samples of a waveform, or
+    RecordError for a record that cannot be one."""
+    t = np.asarray(t, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    if t.ndim != 1 or t.shape != x.shape:
+        raise ValueError("t and x must be 1-D arrays of the same length")
+    finite = np.isfinite(x)
+    if not finite.any():
+        raise RecordError(f"the signal of {source} is all NaN. Choose the signal column with "
+                          "`signal_col`.")
+    if not np.all(np.isfinite(t)):
+        raise RecordError(f"the time of {source} has missing values. Remove those rows or "
+                          "use `rate=HZ`.")
+    if t.size > 1 and not np.all(np.diff(t) > 0):
+        raise RecordError(f"the time of {source} does not increase. Sort the record or use "
+                          "`rate=HZ`.")
+    tf, xf = (t[finite], x[finite]) if not finite.all() else (t, x)
+    _check_range(tf, xf, source)
+    if tf.size < 2 * SAMPLES_PER_CYCLE:
+        raise RecordError(f"{source} has only {tf.size} samples. A waveform needs several "
+                          f"cycles of at least {SAMPLES_PER_CYCLE} samples each.")
+    if np.ptp(xf) == 0:
+        raise RecordError(f"the signal of {source} is constant ({xf[0]:g}). Choose the signal "
+                          "column with `signal_col`.")
+    return t, tf, xf
+
+
+def _with_scatter(y, sigma_y, log_step, used):
+    """(sigma, notes): ``sigma_y`` with the scatter of the amplitudes about a smooth
+    envelope added where it is clearly more than the sample noise explains."""
+    scatter = _amplitude_scatter(y, sigma_y, log_step, used)
+    white = float(np.sqrt(np.median(sigma_y[used] ** 2))) if np.any(used) else float("nan")
+    if not (np.isfinite(scatter) and scatter > _EXCESS_SCATTER * white
+            and scatter > 1e-5 * np.max(y)):
+        return sigma_y, []
+    return np.sqrt(sigma_y**2 + scatter**2 - white**2), [
+        f"amplitudes scatter by {scatter:.3g} about a smooth envelope, "
+        f"{scatter / white:.3g} times what the sample noise explains (correlated "
+        "noise or disturbances): sigma includes the excess"]
+
+
+def _check_count(y, reasons, source):
+    """RecordError when fewer than MIN_TURNING_POINTS turning points are usable."""
+    n_used = int(np.count_nonzero(reasons == ""))
+    if n_used < MIN_TURNING_POINTS:
+        raise RecordError(
+            f"only {n_used} usable turning points in {source} (need {MIN_TURNING_POINTS}): "
+            f"{y.size} found, {y.size - n_used} excluded ({_reason_summary(reasons)}). Use a "
+            "longer record, or check the signal column and the noise.")
+
+
+def _closing_notes(domain, drift, drift_sigma, drift_over_record, noise_sigma, y,
+                   samples_per_cycle):
+    """Notes on a period that changes with amplitude, a drifting equilibrium
+    (``drift_over_record``: its change over the record) and a coarse sampling."""
+    notes = []
+    if domain == "time" and np.isfinite(drift_sigma) and abs(drift) > 3 * drift_sigma \
+            and abs(drift) > 1e-3:
+        notes.append(f"the period changes by {100 * drift:+.2g}% from the smallest to the "
+                     "largest amplitude (nonlinear stiffness or large swings)")
+    if abs(drift_over_record) > 3 * noise_sigma / np.sqrt(max(y.size, 1)) and \
+            abs(drift_over_record) > 1e-3 * np.max(y):
+        notes.append(f"equilibrium drifts by {drift_over_record:.3g} over the record")
+    if samples_per_cycle < SAMPLES_PER_CYCLE:
+        notes.append(f"only {samples_per_cycle:.3g} samples per cycle: amplitudes are less "
+                     f"accurate below {SAMPLES_PER_CYCLE}")
+    return notes
+
+
+def _check_range(t, x, source):
+    for what, values, fix in (("time", t, "give the time in other units"),
+                              ("signal", x, "rescale the signal")):
+        largest = float(np.max(np.abs(values))) if values.size else 0.0
+        if largest > _LARGEST_VALUE:
+            raise RecordError(f"the {what} of {source} reaches {largest:.3g}, beyond what mcfit "
+                              f"handles in double precision ({_LARGEST_VALUE:.0e}); {fix}.")
+
+
+def _reason_summary(reasons):
+    values, counts = np.unique([r for r in reasons if r], return_counts=True)
+    return ", ".join(f"{c} {v}" for v, c in zip(values, counts)) or "none"
+
+
+def _amplitude_scatter(y, sigma, log_step, candidate):
+    """Robust scatter of amplitudes about a smooth envelope, from third differences.
+
+    Third differences cancel the envelope's curvature (var = 20*sigma**2 for independent
+    errors); an alternating offset error shows up in them too, as it should. A fast decay
+    has third differences of its own, about ``log_step**3 * y`` for a decrement
+    ``log_step`` per crest: only the crests where that is small against the noise count.
+    """
+    index = np.flatnonzero(candidate)
+    if index.size < 8:
+        return float("nan")
+    d3 = np.diff(y[index], 3)
+    middle = index[1:-2]
+    with np.errstate(invalid="ignore"):
+        negligible = np.abs(log_step[middle]) ** 3 * np.abs(y[middle]) < \
+            0.3 * np.sqrt(20.0) * sigma[middle]
+    if np.count_nonzero(negligible) < 8:
+        return float("nan")
+    d3 = d3[negligible]
+    return float(_robust_sigma(d3) / np.sqrt(20.0))
+
+
+def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
+    """Raise for a growing oscillation or beating (the envelope rises again)."""
+    index = np.flatnonzero(used)
+    if index.size < MIN_TURNING_POINTS:
+        return
+    values = y[index]
+    smooth = _running_median(values, 5 if index.size >= 10 else 3)
+    noise = np.median(sigma_y[index])
+    start = np.median(smooth[: max(2, index.size // 10)])
+    end = np.median(smooth[-max(2, index.size // 10):])
+    if end > 1.3 * start and end - start > 5 * noise:
+        raise RecordError(
+            f"the oscillation in {source} grows (amplitude {start:.3g} at t = "
+            f"{centres[index[0]]:.4g} to {end:.3g} at t = {centres[index[-1]]:.4g}): this is "
+            "not a free decay. Check the record, or cut it to the decaying part.")
+    k = _rise(smooth, noise, sigma_y[index], floor)
+    if k is not None:
+        dip = int(np.argmin(smooth[:k + 1]))
+        # A rise to the largest amplitude early on, with the decay undisturbed after it:
+        # the record starts before the free decay.
+        starts_late = (smooth[k] >= smooth[0] and 2 * k < smooth.size
+                       and _rise(smooth[k:], noise, sigma_y[index[k:]], floor) is None)
+        raise RecordError(
+            f"the amplitude in {source} falls to {smooth[dip]:.3g} at t = "
+            f"{centres[index[dip]]:.4g} and rises again to {smooth[k]:.3g} at t = "
+            f"{centres[index[k]]:.4g}: "
+            + _rise_advice(starts_late, centres[index[dip]], centres[index[k]]))
+
+
+def _rise(smooth, noise, sigma, floor):
+    """Index of the largest clear rise of the smoothed amplitudes after a fall, or None."""
+    running_min = np.minimum.accumulate(smooth)
+    rise = smooth - running_min
+    # Crests in the noise can be <= 0: a rise from there is judged against the noise.
+    k = int(np.argmax(rise / np.maximum(running_min, max(noise, 1e-300))))
+    # Near the ends the median is the crest itself, often an edge-cut window: judge the
+    # rise against that crest's own uncertainty when it is the larger.
+    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * max(noise, sigma[k])
+            and running_min[k] < smooth[0] and smooth[k] > 3 * floor):
+        return k
+    return None
+
+
+def _rise_advice(starts_late, dip_time, peak_time):
+    """What a rise of the amplitude means, and what to do."""
+    if starts_late:
+        return ("the free decay starts at the rise (the oscillator was held, driven or "
+                f"disturbed before it). Fit from there with `start={peak_time:.4g}`.")
+    return ("beating of two modes, or a disturbance. Excite one mode only, or fit the "
+            f"record before the rise with `end={dip_time:.4g}`.")

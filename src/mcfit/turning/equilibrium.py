@@ -1,0 +1,128 @@
+"""The equilibrium line: coarse, refined from the alternation of the crests, and for tables."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mcfit.turning.common import _BLOCK_SAMPLES
+
+# Sixth-difference windows needed to fit the equilibrium's drift as well as its offset.
+_DRIFT_WINDOWS = 8
+
+
+def _line_fit(t, x):
+    """Least-squares straight line x = e0 + e1*(t - t_ref), computed in chunks."""
+    t_ref = float(t[0] + 0.5 * (t[-1] - t[0]))
+    n = t.size
+    st = sx = stt = stx = 0.0
+    for start in range(0, n, _BLOCK_SAMPLES):
+        tt = t[start:start + _BLOCK_SAMPLES] - t_ref
+        xx = x[start:start + _BLOCK_SAMPLES]
+        st += tt.sum()
+        sx += xx.sum()
+        stt += np.dot(tt, tt)
+        stx += np.dot(tt, xx)
+    denominator = n * stt - st * st
+    e1 = (n * stx - st * sx) / denominator if denominator > 0 else 0.0
+    e0 = (sx - e1 * st) / n
+    return float(e0), float(e1), t_ref
+
+
+def _equilibrium_line(t, x, period, noise):
+    """Coarse equilibrium line (e0, e1, t_ref), each period weighted by 1/(its swing)**2.
+
+    An unweighted line through a fast decay (Q of a few) is pulled towards the first
+    half-cycle, which can leave every later, smaller swing on one side of it and hide its
+    crests. Weighting each period by its swing about the line lets the small late swings,
+    which show the equilibrium best, set it; for a slow decay the weights are nearly equal
+    and the line is the plain fit. The weight is capped at 1e12 times the largest swing's.
+    """
+    e0, e1, t_ref = _line_fit(t, x)
+    edges = np.searchsorted(t, t[0] + period * np.arange(1, int((t[-1] - t[0]) / period) + 1))
+    starts = np.unique(np.concatenate([[0], edges[edges < t.size]]))
+    if starts.size < 3:
+        return e0, e1, t_ref
+    counts = np.diff(np.append(starts, t.size))
+    tau = t - t_ref
+    sums = [np.add.reduceat(v, starts) for v in (tau, x, tau * tau, tau * x)]
+    for _ in range(3):
+        swing = np.maximum.reduceat(np.abs(x - (e0 + e1 * tau)), starts)
+        largest = float(np.max(swing))
+        floor = 1e-6 * largest
+        if np.isfinite(noise):
+            floor = max(floor, 3.0 * noise)
+        if not floor > 0:
+            break
+        weight = (largest / np.maximum(swing, floor)) ** 2  # relative: no overflow for tiny x
+        sw = float(np.dot(weight, counts))
+        st, sx, stt, stx = (float(np.dot(weight, s)) for s in sums)
+        denominator = sw * stt - st * st
+        if not denominator > 0:
+            break
+        e1 = (sw * stx - st * sx) / denominator
+        e0 = (sx - e1 * st) / sw
+    return float(e0), float(e1), t_ref
+
+
+def _equilibrium_correction(centres, fit, half, t_ref):
+    """(d0, d1): equilibrium error from the alternation of the amplitude sequence, in runs
+    of consecutive crests (``half``: local half-periods; a gap breaks a run)."""
+    valid = fit.valid
+    y = fit.y
+    kappa = fit.offset_gain  # y_observed = y_true + kappa*(equilibrium error)
+    # Sixth differences: they remove the decay's smooth trend up to fifth order (second
+    # differences leave its curvature, which biases the offset when Q is low) while the
+    # alternation, at the sequence's Nyquist frequency, gains 64 against white noise's
+    # sqrt(924), more than second differences' 4 against sqrt(6).
+    coefficients = np.array([1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0])
+    width = coefficients.size
+    if valid.size < width:
+        return 0.0, 0.0
+    window_valid = np.all(np.lib.stride_tricks.sliding_window_view(valid, width), axis=1)
+    # Across a gap the decay is not smooth in the crest index: windows whose neighbouring
+    # crests are all about one half-period apart are used when there are enough of them
+    # to fit offset and drift; otherwise every window, as a sparse record needs.
+    step_ok = np.diff(centres) < 0.75 * (half[1:] + half[:-1])
+    clean = window_valid & np.all(np.lib.stride_tricks.sliding_window_view(step_ok, width - 1),
+                                  axis=1)
+    if np.count_nonzero(clean) >= _DRIFT_WINDOWS:
+        window_valid = clean
+    index = np.flatnonzero(window_valid)  # first point of each full window
+    if index.size < 3:
+        return 0.0, 0.0
+    offsets = np.arange(width)
+    y_window = y[index[:, None] + offsets]
+    k_window = kappa[index[:, None] + offsets]
+    tau_window = centres[index[:, None] + offsets] - t_ref
+    rows = y_window @ coefficients
+    f0 = k_window @ coefficients
+    f1 = (k_window * tau_window) @ coefficients
+    if index.size >= _DRIFT_WINDOWS:
+        design = np.stack([f0, f1], axis=1)
+    else:
+        design = f0[:, None]
+    solution, *_ = np.linalg.lstsq(design, rows, rcond=None)
+    if not np.all(np.isfinite(solution)):
+        return 0.0, 0.0
+    # y_obs = y_true + kappa*(e_true - e_used): the correction adds the error to e.
+    d0 = float(solution[0])
+    d1 = float(solution[1]) if solution.size > 1 else 0.0
+    return d0, d1
+
+
+def _table_equilibrium(values):
+    """Level about which maxima and minima give one smooth amplitude sequence.
+
+    An error in the level raises one kind of extremum and lowers the other, which shows in
+    the second differences of the amplitude sequence; choose the level that removes it.
+    """
+    level = float(np.median(values))
+    for _ in range(5):
+        signs = np.where(values >= level, 1.0, -1.0)
+        rows = np.diff(signs * (values - level), 2)
+        feature = -np.diff(signs, 2)  # d(amplitude)/d(level) is -sign
+        denominator = np.dot(feature, feature)
+        if denominator == 0:
+            break
+        level -= float(np.dot(feature, rows) / denominator)
+    return level

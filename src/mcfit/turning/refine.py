@@ -1,0 +1,134 @@
+"""Stage 2 and 3: coarse extrema split by crossings with hysteresis, then the half-cycle
+fits repeated, re-centring the windows and refining the equilibrium."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mcfit.errors import RecordError
+from mcfit.turning.equilibrium import _equilibrium_correction
+from mcfit.turning.period import _period_estimate
+from mcfit.turning.release import _held_crests
+from mcfit.turning.result import MIN_TURNING_POINTS
+from mcfit.turning.windows import (_clipped, _fit_windows, _local_decay_rates,
+                                   _local_half_periods)
+
+# Most passes of the half-cycle fits.
+_REFINE_PASSES = 6
+# The coarse search smooths over this fraction of a cycle.
+_SMOOTHING_CYCLES = 1 / 8
+# A crest is a half-cycle from the zero line by this many noise sigmas of the smoothed
+# signal; the noise must be under _MAX_NOISE_SWING of the signal's swing.
+_HYSTERESIS_Z = 4.0
+_MAX_NOISE_SWING = 0.3
+
+
+@dataclass
+class RefinedCrests:
+    """Crests after the repeated half-cycle fits."""
+
+    centres: np.ndarray  # window centres (crest times of the last pass but one)
+    signs: np.ndarray
+    valid: np.ndarray
+    gamma: np.ndarray  # rows: decay rate and its slope at each crest
+    period: float
+    line: tuple  # equilibrium (e0, e1, t_ref)
+
+
+def _refine(t, x, centres, signs, line, period, noise, held):
+    """Half-cycle fits repeated, each pass re-centring the windows on the fitted crests and
+    refining the equilibrium from the alternation of maxima and minima, until the shifts are
+    within the noise (at most _REFINE_PASSES). Crests before ``held`` count nowhere."""
+    e0, e1, t_ref = line
+    gamma = np.zeros((2, centres.size))  # decay rate and its slope at each crest
+    valid = np.ones(centres.size, dtype=bool)
+    for refinement in range(_REFINE_PASSES):
+        half = _local_half_periods(centres, period, valid)
+        fit = _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref)
+        # Flattened crests would bias the equilibrium update.
+        fit.valid &= ~_clipped(fit, signs) & (np.arange(centres.size) >= _held_crests(
+            centres, held, period))
+        delta0, delta1 = _equilibrium_correction(centres, fit, half, t_ref)
+        e0, e1 = e0 + delta0, e1 + delta1
+        settled = refinement > 0 and _shifts_within_noise(fit, half, noise)
+        centres, signs, valid, y = _recentred(centres, signs, fit, half)
+        half = _local_half_periods(centres, period, valid)
+        gamma = _local_decay_rates(centres, y, np.pi / half, valid)
+        period = _period_estimate(centres, signs, valid, period)
+        if settled:
+            break
+    return RefinedCrests(centres, signs, valid, gamma, period, (e0, e1, t_ref))
+
+
+def _recentred(centres, signs, fit, half):
+    """(centres, signs, valid, y) with each window moved to its fitted crest (by a quarter
+    of its half-period at most), dropping a crest that comes within a quarter half-period
+    of the one before."""
+    centres = centres + np.where(fit.valid, np.clip(fit.shift, -half / 4, half / 4), 0.0)
+    keep = np.concatenate([[True], np.diff(centres) > 0.25 * half[1:]])
+    return centres[keep], signs[keep], fit.valid[keep], fit.y[keep]
+
+
+def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, source):
+    """Crest times and signs: half-cycles split by crossings with hysteresis."""
+    width = max(1, int(samples_per_cycle * _SMOOTHING_CYCLES))
+    if width > 1:
+        cumulative = np.concatenate([[0.0], np.cumsum(x)])
+        smooth = np.empty_like(x)
+        half = width // 2
+        lo = np.clip(np.arange(x.size) - half, 0, x.size)
+        hi = np.clip(np.arange(x.size) - half + width, 0, x.size)
+        smooth[:] = (cumulative[hi] - cumulative[lo]) / (hi - lo)
+        del cumulative, lo, hi
+    else:
+        smooth = x.copy()
+    smooth -= e0 + e1 * (t - t_ref)
+    scale = float(np.percentile(np.abs(smooth[: min(smooth.size, 1 << 22)]), 99.5))
+    threshold = _HYSTERESIS_Z * noise / np.sqrt(width)
+    if not np.isfinite(threshold) or threshold <= 0:
+        threshold = 1e-3 * scale
+    if threshold > _MAX_NOISE_SWING * scale:
+        raise RecordError(f"no oscillation above the noise in {source}: the signal swings by "
+                          f"{scale:.3g} about its mean and the noise is {noise:.3g}. Check the "
+                          "signal column.")
+    state = np.zeros(x.size, dtype=np.int8)
+    state[smooth > threshold] = 1
+    state[smooth < -threshold] = -1
+    marked = np.flatnonzero(state)
+    if marked.size == 0:
+        raise RecordError(f"no oscillation found in {source}. Check the signal column.")
+    # Forward-fill the last definite side: each run of one side is a half-cycle.
+    filled_index = np.maximum.accumulate(np.where(state != 0, np.arange(x.size), -1))
+    side = np.where(filled_index >= 0, state[np.maximum(filled_index, 0)], 0)
+    del state, filled_index
+    changes = np.flatnonzero(np.diff(side) != 0) + 1
+    starts = np.concatenate([[marked[0]], changes[changes > marked[0]]])
+    stops = np.concatenate([starts[1:], [x.size]])
+    run_sign = side[starts].astype(np.int64)
+    del side
+    # Crest of each run: index of its largest value on its side.
+    best = np.empty(starts.size, dtype=np.int64)
+    for k in range(starts.size):
+        segment = smooth[starts[k]:stops[k]]
+        best[k] = starts[k] + (np.argmax(segment) if run_sign[k] > 0 else np.argmin(segment))
+    # A crest on the very first or last sample is a cut half-cycle: no crest inside.
+    inside = (best > 0) & (best < x.size - 1)
+    centres = t[best[inside]]
+    signs = run_sign[inside]
+    if centres.size < MIN_TURNING_POINTS:
+        raise RecordError(f"only {centres.size} turning points found in {source} (need "
+                          f"{MIN_TURNING_POINTS}). Use a record of several cycles.")
+    return centres.astype(np.float64), signs
+
+
+def _shifts_within_noise(fit, half, noise):
+    """True when the crest shifts of a pass are what the sample noise alone gives them
+    (root-mean-square under 2 standard errors): further passes would follow the noise."""
+    ok = fit.valid & np.isfinite(fit.gain) & (fit.y > 0)
+    if not (np.count_nonzero(ok) >= MIN_TURNING_POINTS and noise > 0):
+        return False
+    phase_sigma = noise * np.sqrt(fit.gain[ok]) / fit.y[ok]
+    z = fit.shift[ok] * np.pi / half[ok] / phase_sigma
+    return bool(np.sqrt(np.mean(z * z)) < 2.0)

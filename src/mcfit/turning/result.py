@@ -1,0 +1,129 @@
+"""The result of the turning-point search: :class:`TurningPoints`."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Fewest used turning points a fit needs.
+MIN_TURNING_POINTS = 4
+
+
+@dataclass(frozen=True, eq=False)
+class TurningPoints:
+    """Turning points of a record, with what was excluded and why.
+
+    Attributes
+    ----------
+    t : ndarray, shape (k,)
+        Crest times (time units of the record, or cycle number n).
+    y : ndarray, shape (k,)
+        Amplitudes about the equilibrium (signal units): > 0 but for crests within the
+        noise, where the projection can be 0 or negative.
+    sigma : ndarray, shape (k,)
+        Standard deviation estimate of each amplitude.
+    sign : ndarray of int, shape (k,)
+        +1 for a maximum, -1 for a minimum (0 if unknown, as in unsigned tables).
+    used : ndarray of bool, shape (k,)
+        The points a fit should use.
+    excluded_reason : tuple of str
+        "" for used points, else "before release", "noise floor", "clipped", "gap" or
+        "edge".
+    period : float
+        Oscillation period from the turning-point spacing (NaN if unknown).
+    period_sigma : float
+        Its standard error.
+    period_drift : float
+        Relative change of the period from the smallest to the largest used amplitude,
+        (T(y_max) - T(y_min))/T; positive when large swings are slower.
+    period_drift_sigma : float
+    equilibrium : float
+        Equilibrium value at ``t_start``, the first sample.
+    equilibrium_drift : float
+        Slope of the equilibrium (signal units per time unit).
+    noise_sigma : float
+        Standard deviation of the sample noise (NaN for tables).
+    noise_floor : float
+        Amplitude level of the noise floor (0 if none was found).
+    noise_floor_time : float
+        Time from which the tail was excluded as noise floor (NaN if none).
+    release_time : float
+        Start of the free decay when the record starts before it: where a signal held
+        still starts to move, or the first crest of the decay after amplitudes rising or
+        flat (driven or settling). The turning points before it are excluded as "before
+        release". NaN when the record decays freely from its start.
+    gaps : tuple of (float, float)
+        Start and end times of gaps in the record.
+    domain : {"time", "cycle"}
+    notes : tuple of str
+    t_start : float
+        Time of the record's first sample, where the equilibrium line starts (see
+        :meth:`equilibrium_at`).
+    """
+
+    t: np.ndarray
+    y: np.ndarray
+    sigma: np.ndarray
+    sign: np.ndarray
+    used: np.ndarray
+    excluded_reason: tuple[str, ...]
+    period: float = float("nan")
+    period_sigma: float = float("nan")
+    period_drift: float = float("nan")
+    period_drift_sigma: float = float("nan")
+    equilibrium: float = 0.0
+    equilibrium_drift: float = 0.0
+    noise_sigma: float = float("nan")
+    noise_floor: float = 0.0
+    noise_floor_time: float = float("nan")
+    release_time: float = float("nan")
+    gaps: tuple[tuple[float, float], ...] = ()
+    domain: str = "time"
+    notes: tuple[str, ...] = field(default=())
+    steady_line: object = None  # the hum subtracted before the search (mcfit.hum.SteadyLine)
+    t_start: float = 0.0
+
+    def equilibrium_at(self, t):
+        """The equilibrium line at times ``t``: ``equilibrium`` at ``t_start``, changing by
+        ``equilibrium_drift`` per time unit."""
+        return self.equilibrium + self.equilibrium_drift * (np.asarray(t) - self.t_start)
+
+    @property
+    def count(self):
+        """Number of used turning points."""
+        return int(np.count_nonzero(self.used))
+
+    def to_dict(self):
+        """Plain Python data (lists, floats, None for NaN), ready for JSON."""
+        def number(value):
+            value = float(value)
+            return value if np.isfinite(value) else None
+
+        return {
+            "t": [float(v) for v in self.t],
+            "y": [float(v) for v in self.y],
+            "sigma": [number(v) for v in self.sigma],
+            "sign": [int(v) for v in self.sign],
+            "used": [bool(v) for v in self.used],
+            "excluded_reason": list(self.excluded_reason),
+            "period": number(self.period),
+            "period_sigma": number(self.period_sigma),
+            "period_drift": number(self.period_drift),
+            "period_drift_sigma": number(self.period_drift_sigma),
+            "equilibrium": number(self.equilibrium),
+            "equilibrium_drift": number(self.equilibrium_drift),
+            "noise_sigma": number(self.noise_sigma),
+            "noise_floor": number(self.noise_floor),
+            "noise_floor_time": number(self.noise_floor_time),
+            "release_time": number(self.release_time),
+            "gaps": [[float(a), float(b)] for a, b in self.gaps],
+            "domain": self.domain,
+            "notes": list(self.notes),
+        }
+
+
+def _frozen(array):
+    array = np.ascontiguousarray(array)
+    array.setflags(write=False)
+    return array

@@ -1,0 +1,118 @@
+"""Stage 1: the coarse period and the white-noise level from the spectrum, and the gaps."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from mcfit.errors import RecordError
+from mcfit.turning.common import _robust_sigma
+
+# Longest stretch fed to the FFT for the coarse period and noise level.
+_SPECTRUM_SAMPLES = 1 << 21
+# A gap longer than this many median steps is left empty (zeros) in the spectrum.
+_LONG_GAP_STEPS = 32
+# A time step longer than this many median steps is a gap.
+_GAP_STEPS = 2.5
+# The white-noise floor is read from the spectrum above this multiple of the oscillation's
+# frequency.
+_NOISE_BAND = 2.5
+
+
+def _find_gaps(tf, steps, dt):
+    """Stretches with missing samples or a time step over _GAP_STEPS median steps."""
+    gaps = []
+    long_steps = np.flatnonzero(steps > _GAP_STEPS * dt)
+    for i in long_steps[:1000]:
+        gaps.append((float(tf[i]), float(tf[i + 1])))
+    return sorted(gaps)
+
+
+def _checked_period(period, dt, source):
+    """The period as a float, or RecordError when it is not over 2 samples."""
+    period = float(period)
+    if not np.isfinite(period) or period <= 2 * dt:
+        raise RecordError(f"no oscillation found in {source}: the spectrum peaks at a period "
+                          f"of {period:.3g}, under 2 samples. Check the signal column.")
+    return period
+
+
+def _gap_note(gaps, period):
+    """Where the gaps are: the fit spans them with the turning points on both sides."""
+    start, end = max(gaps, key=lambda g: g[1] - g[0])
+    cycles = f", about {(end - start) / period:.3g} periods" if np.isfinite(period) else ""
+    where = f"from t = {start:.6g} to {end:.6g} ({end - start:.4g} time units{cycles})"
+    if len(gaps) == 1:
+        head = f"a gap in the record {where}"
+    else:
+        total = sum(b - a for a, b in gaps)
+        head = (f"{len(gaps)} gaps in the record, {total:.4g} time units in all, the longest "
+                f"{where}")
+    return head + ": bridged, the turning points on both sides are used"
+
+
+def _spectrum(t, x, dt, steps):
+    """(period, noise sigma, periodogram) from a Hann-windowed periodogram of the first
+    stretch; the periodogram is (frequencies, power, window sum, window sum of squares,
+    bin of the peak), or None when too short."""
+    n = min(t.size, _SPECTRUM_SAMPLES)
+    irregular = steps[: n - 1].size and (steps[: n - 1].max() > 1.05 * steps[: n - 1].min())
+    outside = None
+    if irregular:
+        grid = t[0] + dt * np.arange(int((t[n - 1] - t[0]) / dt) + 1)
+        grid = grid[:_SPECTRUM_SAMPLES]
+        v = np.interp(grid, t[:n], x[:n])
+        outside = _in_long_gaps(grid, t[:n], steps[: n - 1], dt)
+    else:
+        v = x[:n].astype(np.float64, copy=True)
+    m = v.size
+    index = np.arange(m, dtype=np.float64) - 0.5 * (m - 1)  # centred: the line's terms decouple
+    if outside is None:
+        slope = float(np.dot(index, v) / np.dot(index, index)) if m > 1 else 0.0
+        v -= v.mean() + slope * index
+    else:  # a straight line across a long gap would be a spectral line of its own: zeros
+        inside = ~outside
+        slope, mean = np.polyfit(index[inside], v[inside], 1)
+        v -= mean + slope * index
+        v[outside] = 0.0
+    window = np.hanning(m)
+    v *= window
+    power = np.abs(np.fft.rfft(v)) ** 2
+    del v
+    frequencies = np.fft.rfftfreq(m, d=dt)
+    lowest = 2  # periods longer than half the stretch are drift, not oscillation
+    if power.size <= lowest + 2:
+        return float("nan"), float("nan"), None
+    k = lowest + int(np.argmax(power[lowest:]))
+    if 0 < k < power.size - 1:
+        a, b, c = np.log(power[k - 1:k + 2] + 1e-300)
+        denominator = a - 2 * b + c
+        offset = 0.5 * (a - c) / denominator if denominator < 0 else 0.0
+    else:
+        offset = 0.0
+    f0 = (k + offset) * frequencies[1]
+    energy = np.dot(window, window)
+    noise = _spectral_noise(power, frequencies, f0, energy, x[:n])
+    return ((1.0 / f0 if f0 > 0 else float("nan")), noise,
+            (frequencies, power, float(window.sum()), energy, k))
+
+
+def _spectral_noise(power, frequencies, f0, energy, x):
+    """White-noise sigma from the periodogram's floor above _NOISE_BAND*f0 (``energy``: the
+    window's sum of squares)."""
+    band = power[frequencies > _NOISE_BAND * f0]
+    if band.size >= 16:
+        return float(np.sqrt(np.median(band) / (np.log(2) * energy)))
+    # Too few samples per cycle for a clean band: differences overestimate, safely.
+    d = np.diff(x)
+    return float(_robust_sigma(d) / np.sqrt(2))
+
+
+def _in_long_gaps(grid, t, steps, dt):
+    """Grid points inside gaps longer than _LONG_GAP_STEPS median steps (None if none)."""
+    long_steps = np.flatnonzero(steps > _LONG_GAP_STEPS * dt)
+    if long_steps.size == 0:
+        return None
+    edges = np.zeros(grid.size + 1)
+    np.add.at(edges, np.searchsorted(grid, t[long_steps], side="right"), 1.0)
+    np.add.at(edges, np.searchsorted(grid, t[long_steps + 1]), -1.0)
+    return np.cumsum(edges[:-1]) > 0
