@@ -98,6 +98,9 @@ def test_files_and_runs():
     assert table["run"].isna().tolist() == [False] * 5 + [True]
     assert (table["status"] == "ok").all()
     np.testing.assert_allclose(table["b"][1], second.fit.values["b"])
+    # Python words in Python: the options are named as keywords, not as flags.
+    [missing] = mcfit.analyse_files([capstone], run=9)["error"]
+    assert missing.endswith("Give one of those numbers to `run`.")
 
 
 def test_fit_decay_refuses_a_raw_waveform():

@@ -18,7 +18,6 @@ from multiprocessing.connection import wait
 from pathlib import Path
 
 from mcfit.errors import InputError, McfitError, UsageError
-from mcfit.options import for_command_line
 
 __all__ = ["FitOptions", "JobResult", "FileResult", "expand_inputs", "run_jobs",
            "plot_path_for"]
@@ -88,8 +87,7 @@ class FileResult:
 
         analysis = failed_analysis(_display_name(source), message)
         return cls((JobResult(source=analysis.source, status=analysis.status,
-                              error=_flags(analysis.error),
-                              output=_format(analysis, options)),))
+                              error=analysis.error, output=_format(analysis, options)),))
 
 
 def expand_inputs(arguments) -> list[str]:
@@ -206,26 +204,19 @@ def _record_job(source, record, options, plot_path):
             plot_error = f"cannot write plot {plot_path}: {error}"
     rows = turning_points_rows(analysis) if options.turning_points_out else ""
     return analysis, JobResult(source=analysis.source, status=analysis.status,
-                               error=_flags(analysis.error), output=_format(analysis, options),
+                               error=analysis.error, output=_format(analysis, options),
                                plot_error=plot_error, turning_points=rows)
 
 
 def _format(analysis, options):
-    """The record in the one format the command line writes (each costs a full summary),
-    the options its notes name spelled as flags."""
+    """The record in the one format the command line writes (each costs a full summary)."""
     from mcfit import report
 
     if options.output_format == "json":
-        text = report.to_json(analysis)
-    elif options.output_format == "csv":
-        text = report.to_csv_row(analysis, bootstrap=options.bootstrap > 0)
-    else:
-        text = report.to_text(analysis)
-    return for_command_line(text)
-
-
-def _flags(message):
-    return None if message is None else for_command_line(message)
+        return report.to_json(analysis)
+    if options.output_format == "csv":
+        return report.to_csv_row(analysis, bootstrap=options.bootstrap > 0)
+    return report.to_text(analysis)
 
 
 def _display_name(source) -> str:

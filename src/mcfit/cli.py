@@ -554,20 +554,22 @@ def _write_result(result, target, points, output_format, written):
     """Write one record's output and errors; return how many failures it counts."""
     failures = 0
     points.write(result.turning_points)
+    # The library names options in Python spelling; here they are flags.
+    output = for_command_line(result.output)
     if result.status != "ok":
         failures += 1
-        click.echo(f"Error: {printable(result.error)}", err=True)
+        click.echo(f"Error: {printable(for_command_line(result.error))}", err=True)
     if result.plot_error:
         failures += 1
         click.echo(f"Error: {printable(result.plot_error)}", err=True)
     if output_format == "json":
-        target.write(result.output + "\n")
+        target.write(output + "\n")
     elif output_format == "csv":
-        target.write(result.output)
+        target.write(output)
     elif result.status == "ok" or target.temporary is not None:
         # On stdout the Error line above (stderr) says all a failed record's report would;
         # a report file (-o) keeps it, so that the file accounts for every record.
-        target.write(("\n" if written else "") + _printable_lines(result.output))
+        target.write(("\n" if written else "") + _printable_lines(output))
     return failures
 
 

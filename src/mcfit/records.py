@@ -1839,9 +1839,10 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
     columns = _read_columns(table, indices)
     x = columns[-1]
     t = columns[0] if time_index is not None else None
+    y_index = None
     if angle_from is not None:
-        x = _swing_angle(table, x, _resolve_column(table, angle_from[1], "angle",
-                                                   run.columns), notes)
+        y_index = _resolve_column(table, angle_from[1], "angle", run.columns)
+        x = _swing_angle(table, x, y_index, notes)
 
     # Side-by-side runs: shorter runs are padded with empty cells at the end.
     present = np.isfinite(x) if t is None else np.isfinite(t)
@@ -1880,8 +1881,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
     signal_label = table.names[signal_index]
     if angle_from is not None:
         signal_unit = "rad"
-        y_label = table.names[_resolve_column(table, angle_from[1], "angle", run.columns)]
-        signal_label = f"angle from {signal_label}, {y_label}"
+        signal_label = f"angle from {signal_label}, {table.names[y_index]}"
     time_label = table.names[time_index] if time_index is not None else None
 
     if rate is not None:
