@@ -4,22 +4,36 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
 from mcfit import bench, decay
+from mcfit.bench.throughput import CommandRate
+from mcfit.bench.timing import ChildRun, run_child
+from mcfit.bench.verdicts import _fluid_at
 from mcfit.bounds import waveform_crlb
 from mcfit.cli import cli
 
 TINY = dataclasses.replace(
     bench.QUICK, name="tiny", steps_per_period=(50, 100), rtols=(1e-6,), snrs=(1e3,),
-    samples_per_cycle=(20,), repeats=2, batch_records=2, batch_samples=2000, startup_runs=1,
-    method_records=1, method_qs=(5,),
+    samples_per_cycle=(20,), repeats=2, batch_records=2, batch_samples=2000, batch_files=3,
+    batch_methods=("turning-points",), startup_runs=1, verdict_records=4, method_records=1, method_qs=(5,),
     integrator_scenes=(bench.IntegratorScene("short Fig. 20.19", 0.1, 0.1, 0.01, 4.0, 0.5, 2.0),),
     fit_scenes=(bench.FitScene("short b", "b", 1.0, 0.0, 0.05, 0.0, 1.0, 30),
                 bench.FitScene("short abc", "abc", 4.0, 0.1, 0.1, 0.01, 0.5, 20)))
+
+# Issue 17's targets, one line each in the throughput section.
+TARGETS = ("turning points + fit per record", "the same with --method auto's choice",
+           "mcfit DIR --jobs 1, --method turning-points", "mcfit DIR --jobs 1, --method auto",
+           "--jobs 2 / --jobs 1 (wall), --method turning-points",
+           "--jobs 2 / --jobs 1 (wall), --method auto", "one-record run / import floor",
+           "mcfit --help / import click", "10^7 samples: time",
+           "10^7 samples: peak memory / file size")
 
 
 @pytest.fixture
@@ -41,25 +55,100 @@ def test_quick_fitting_section_prints_every_method(monkeypatch):
     assert "fitting: short b" in result.stderr  # progress goes to stderr
 
 
+def _table(text, heading):
+    """The rows under ``heading`` up to the next blank line, split into cells."""
+    block = text.split(heading, 1)[1].split("\n\n")[0].splitlines()
+    return [row.split() for row in block[2:] if row.strip() and not row.strip().startswith("(")]
+
+
 def test_every_section_runs_and_writes_the_plots(tmp_path):
     blocks = list(bench.run(TINY, plot_dir=tmp_path / "plots"))
     text = "\n".join(blocks)
-    for heading in ("Integrators:", "Fitting:", "Methods against Q", "Throughput:", "records/s",
+    for heading in ("Integrators:", "Fitting:", "Verdicts and 95 %", "Methods against Q",
+                    "Throughput:", "rec/s",
                     "mcfit --help", "peak resident memory"):
         assert heading in text
     for setting in ("dt = T/50", "dt = T/100", "rtol 1e-06", "closed form"):
         assert setting in text
     throughput = blocks[-1]
     assert throughput.startswith("Throughput:")
-    assert throughput.count(" 2/2") == 3  # in memory, mcfit DIR --jobs 1 and 2: both fitted
-    stages = throughput.split("by record length:")[1].split("\n\n")[0].splitlines()[2:]
-    assert [int(row.split()[0]) for row in stages] == [200, 2000]
-    for row in stages:  # turning points + fit = total > 0, and records/s its inverse
-        turning, fitting, total, rate = map(float, row.split()[1:])
+    for target in TARGETS:  # each target on one line, with its target and a verdict
+        lines = [line for line in throughput.splitlines() if target in line]
+        assert len(lines) == 1, target
+        assert re.search(r"target [<>]=? [\d.]+ ?(ms|rec/s|x|s)\s+(met|NOT MET|-)$", lines[0])
+    assert "on 3 files, not the 200 of the target; --full runs 200" in throughput
+    assert "10^7 samples: time" in throughput and "not run" in throughput
+    assert "mcfit bench --full --section throughput" in throughput
+    commands = [row for row in _table(throughput, "removed by a one-file run:")
+                if row[0] == "turning-points"]
+    assert [row[1] for row in commands] == ["1", "2"]
+    assert all(row[-2] == "3/3" for row in commands)  # the real command fitted every file
+    assert "mcfit DIR --jobs 1, --method auto (default)" in throughput  # not run in TINY
+    stages = _table(throughput, "read from CSV:")
+    assert [int(row[0]) for row in stages] == [200, 2000]
+    for row in stages:  # turning points + fit = TP + fit > 0, and records/s its inverse
+        _, turning, fitting, total, rate = map(float, row[1:])
         assert total == pytest.approx(turning + fitting, abs=0.11) and total > 0
         assert rate == pytest.approx(1e3 / total, rel=0.1)
+    where = throughput.split("--method auto on the ", 1)[1]
+    fitted = int(where.split()[0])
+    kept = int(re.search(r"\): (\d+) kept", where).group(1))
+    sent = 0 if "none went to the waveform fit" in where else int(
+        re.search(r"\n  (\d+) went to the waveform fit", where).group(1))
+    assert fitted == 2 and kept + sent == fitted
     for name in ("integrators.png", "fitting.png"):
         assert (tmp_path / "plots" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_command_rate_removes_the_start_up_of_a_one_file_run():
+    def run(wall, cpu):
+        return ChildRun(wall, cpu, None, 0)
+
+    rate = CommandRate("auto", 1, 41, run(6.0, 5.0), run(2.0, 1.5), 41, 0)
+    assert rate.rate == pytest.approx(40 / 4.0) and rate.cpu_rate == pytest.approx(40 / 3.5)
+    noisy = CommandRate("auto", 1, 41, run(2.0, None), run(2.5, 1.0), 41, 0)
+    assert math.isnan(noisy.rate) and math.isnan(noisy.cpu_rate)
+    failed = CommandRate("auto", 1, 41, run(6.0, 5.0), run(2.0, 1.5), None, None)
+    assert math.isnan(failed.rate)
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="no peak memory of a child on Windows")
+def test_child_peak_memory_is_in_mib():
+    # 100 MiB of ones touched by the child: the peak is that plus the interpreter's.
+    run = run_child([sys.executable, "-c", "import numpy; numpy.ones(100 * 2**17).sum()"])
+    assert run.returncode == 0 and run.cpu > 0
+    assert 100 < run.peak_mib < 400
+
+
+def test_bench_imports_without_resource_and_without_the_source_tree(tmp_path):
+    # As on Windows (no ``resource``) and from an installed wheel (run away from the tree);
+    # matplotlib only when a figure is drawn, pandas only in the child processes.
+    code = ("import sys; sys.modules['resource'] = None\n"
+            "from mcfit.bench import QUICK, records, throughput, timing\n"
+            "t, x = records.throughput_record(QUICK, 0)\n"
+            "print(timing.peak_memory_mib(), t.size,\n"
+            "      [m for m in ('matplotlib', 'pandas') if m in sys.modules])")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=tmp_path, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["None", "10000", "[]"]
+
+
+def test_throughput_records_have_the_issue_17_size(rng):
+    from mcfit.turning import find_turning_points
+
+    t, x = bench.records.throughput_record(bench.QUICK, 3)
+    assert t.size == 10_000
+    assert 158 <= find_turning_points(t, x).count <= 160  # issue 17: about 159 crests
+
+
+def test_large_csv_has_the_promised_rows_and_size(tmp_path):
+    path = tmp_path / "large.csv"
+    bench.records.write_large_csv(path, 20_000, block=7_000)
+    lines = path.read_text().splitlines()
+    assert lines[0] == "time (s),position (m),velocity" and len(lines) == 20_001
+    assert lines[1].split(",")[0] == "0.000000" and lines[-1].split(",")[0] == "19.999000"
+    assert 25 <= path.stat().st_size / 20_000 <= 32  # about 29 bytes a row, as 290 MB/1e7
 
 
 def test_bench_help_lists_the_options():
@@ -93,3 +182,13 @@ def test_crlb_of_b_matches_a_pure_exponential_by_hand():
     by_hand = math.sqrt(np.linalg.inv(design.T @ design)[1, 1]) * sigma
     bound = waveform_crlb(t, y0, 0.0, b, 0.0, 1.0, sigma, "b")["b"]
     assert by_hand <= bound <= 1.1 * by_hand
+
+
+def test_verdicts_fluid_scene_sits_its_bound_from_b_by_hand():
+    # y = y0/((1 + a*y0/b)*exp(b*t) - a*y0/b): at a = 0 the derivatives in (y0, a, b) are
+    # exp(-b*t), -y0**2*(exp(b*t) - 1)/b * exp(-2*b*t) and -t*y0*exp(-b*t).
+    b, noise, t = 0.05, 2e-3, np.arange(0.0, 100.0, 0.5)
+    growth = np.exp(b * t)
+    design = np.column_stack([1 / growth, -(growth - 1) / b / growth**2, -t / growth])
+    by_hand = noise * math.sqrt(np.linalg.inv(design.T @ design)[1, 1])
+    assert _fluid_at(3, b, 100.0, noise) == pytest.approx(3 * by_hand, rel=1e-9)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from mcfit import bench
-from mcfit.bench_methods import format_methods, record_duration, run_methods
+from mcfit.bench.methods import format_methods, record_duration, run_methods
 
 
 def test_records_decay_to_a_thousandth_within_8_cycles_and_40_s():

@@ -221,13 +221,3 @@ def test_without_the_extra_one_line_says_how_to_install_it(runner, records, monk
     result = runner.invoke(cli, [paths[0], "--dask", "tcp://127.0.0.1:8786"])
     assert result.exit_code == 2
     assert result.stderr == "Error: --dask needs the dask extra: pip install 'mcfit[dask]'\n"
-
-
-def test_help_does_not_import_distributed():
-    code = ("import sys; from mcfit.cli import main\n"
-            "try:\n    main(['fit', '--help'])\nexcept SystemExit:\n    pass\n"
-            "print(sorted(m for m in ('dask', 'distributed') if m in sys.modules))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            timeout=TIMEOUT)
-    assert "--dask ADDRESS" in result.stdout
-    assert result.stdout.strip().splitlines()[-1] == "[]"

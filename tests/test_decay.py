@@ -348,3 +348,75 @@ def test_power_law_jacobian_matches_mpmath_derivatives(n):
                         mp.diff(lambda v: law(t, y0, v, mp.mpf(n)), k),
                         mp.diff(lambda v: law(t, y0, k, v), mp.mpf(n), h=mp.mpf("1e-15"))]
             np.testing.assert_allclose(row, [float(e) for e in expected], rtol=1e-9, atol=1e-12)
+
+
+def _mp_amplitude(t, y0, a, b, c):
+    """The closed form of THEORY.md section 3 evaluated directly in high precision
+    (t before the stop): an independent reference for every branch of decay.py."""
+    t, y0, a, b, c = (mp.mpf(v) for v in (t, y0, a, b, c))
+    sigma = b * b / 4 - a * c
+    if sigma > 0:
+        tau = mp.tanh(mp.sqrt(sigma) * t) / mp.sqrt(sigma)
+    elif sigma < 0:
+        tau = mp.tan(mp.sqrt(-sigma) * t) / mp.sqrt(-sigma)
+    else:
+        tau = t
+    return (y0 - tau * (c + b * y0 / 2)) / (1 + tau * (a * y0 + b / 2))
+
+
+def _mp_jacobian(t, y0, a, b, c):
+    # 250 digits: at t = 1e-200, y differs from y0 in the 200th digit.
+    with mp.workdps(250):
+        point = [mp.mpf(v) for v in (y0, a, b, c)]
+        rows = []
+        for i in range(4):
+            def along(v, i=i):
+                values = list(point)
+                values[i] = v
+                return _mp_amplitude(t, *values)
+            rows.append(float(mp.diff(along, point[i])))
+        return rows
+
+
+@pytest.mark.parametrize("y0, a, b, c, times", [
+    # s = 1e-150: s*t underflows at t = 1e-200, so tau comes from its series there.
+    (1.0, 1.0, 0.0, 1e-300, [1e-200, 1e-20, 0.3, 2.0]),
+    # D > 0 far into the exponential form with a Coulomb term (d tau/d sigma by the direct
+    # formula there), and the series, direct and exponential slices in one call.
+    (1.0, 0.3, 2.0, 2e-5, [0.01, 0.2, 0.6, 2.0, 4.0, 5.5]),
+    # D < 0 (tan) on both sides of the series limit, up to close to the stop.
+    (1.0, 1.0, 0.5, 1.0, [0.01, 0.3, 0.5, 0.6]),
+])
+def test_jacobian_matches_mpmath_derivatives_of_the_closed_form(y0, a, b, c, times):
+    """Each element of the Jacobian against mpmath's derivative of the closed form in
+    250-digit arithmetic."""
+    times = np.array(times)
+    assert np.all(times < decay.stop_time(y0, a, b, c))
+    jacobian = decay.amplitude_jacobian(times, y0, a, b, c)
+    reference = np.array([_mp_jacobian(t, y0, a, b, c) for t in times])
+    with mp.workdps(60):
+        y_reference = [float(_mp_amplitude(t, y0, a, b, c)) for t in times]
+    np.testing.assert_allclose(decay.amplitude(times, y0, a, b, c), y_reference, rtol=1e-13)
+    # Element by element, tiny ones included (dy/da = -y0**2 * t at t = 1e-200).
+    np.testing.assert_allclose(jacobian, reference, rtol=1e-10, atol=0)
+
+
+def test_unsorted_and_negative_times_and_parameter_arrays_match_one_set_at_a_time():
+    """Times in any order (and before t = 0, the law run backwards) and arrays of parameter
+    sets give, element by element, what one parameter set at one time gives."""
+    rng = np.random.default_rng(5)
+    times = rng.uniform(-0.5, 6.0, size=(3, 5))
+    y0 = np.array([[1.0], [2.0], [0.0]])
+    a, b = 0.3, np.array([0.0, 0.2, 0.5, 2.0, 0.2])
+    c = 0.1
+    y, jacobian = decay.amplitude_and_jacobian(times, y0, a, b, c)
+    assert y.shape == (3, 5) and jacobian.shape == (3, 5, 4)
+    for i in range(3):
+        for j in range(5):
+            one = decay.amplitude_terms(np.array([times[i, j]]), float(y0[i, 0]), a,
+                                        float(b[j]), c)
+            assert y[i, j] == one.amplitude()[0]
+            np.testing.assert_array_equal(jacobian[i, j], one.jacobian()[0])
+    with mp.workdps(60):
+        backwards = float(_mp_amplitude(-0.4, 1.0, a, 0.2, c))
+    assert decay.amplitude(-0.4, 1.0, a, 0.2, c) == pytest.approx(backwards, rel=1e-13)

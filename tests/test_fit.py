@@ -327,13 +327,6 @@ def test_non_positive_tail_with_forced_models_and_bootstrap(rng):
     assert fit_decay(t, y, period=1.0, model="power").status == "ok"
 
 
-def test_result_serialises_to_plain_data(rng):
-    import json
-    result = _noisy_fit(rng, 4.0, 0.1, 0.1, 0.01, 0.5, 20.0, 1e-3, bootstrap=5, rng=rng)
-    text = json.dumps(result.to_dict())
-    assert '"model": "abc"' in text
-
-
 def test_sigma_from_the_residuals_is_the_noise_they_show(rng):
     """Without amplitude uncertainties the result's sigma is the residual scatter, not 1."""
     t, y = _turning_points(1.0, 0.0, 0.05, 0.0, 1.0, 60.0)

@@ -8,8 +8,6 @@ exact Coulomb decrement pi*c/omega per half-cycle.
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -314,14 +312,6 @@ def test_turning_amplitudes_always_decrease(q0, mix):
     result = motion.integrate_accurate(1.0, 0.0, TWO_PI, motion.damping_terms(a, b, c),
                                        np.array([0.0, 5.0]))
     assert np.all(np.diff(np.abs(result.turning_x)) < 0)
-
-
-def test_motion_imports_no_io_or_cli_libraries():
-    code = ("import sys, mcfit.motion; "
-            "print(sorted(m for m in ('click', 'pandas', 'matplotlib') if m in sys.modules))")
-    output = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            check=True).stdout
-    assert output.strip() == "[]"
 
 
 def test_accurate_start_with_a_velocity_below_the_tolerance_is_a_turning_point():

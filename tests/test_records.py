@@ -165,7 +165,7 @@ def test_turning_point_tables(tmp_path):
         f"{a * 0.8},{b}" for a, b in zip(n, peaks))))
     assert record.kind == "turning-points" and record.domain == "time"
     forced = read_record(write(tmp_path, "w.csv", "time,x\n" + rows(",")),
-                         input="turning-points", domain="cycle")
+                         kind="turning-points", domain="cycle")
     assert forced.kind == "turning-points" and forced.domain == "cycle"
 
 
@@ -231,18 +231,10 @@ def test_options_are_checked(tmp_path):
     path = write(tmp_path, "a.csv", "t,x\n" + rows(","))
     with pytest.raises(UsageError, match="rate"):
         read_record(path, rate=-1)
-    with pytest.raises(UsageError, match="input"):
-        read_record(path, input="spectrum")
-    with pytest.raises(UsageError, match="either a time column or a sample rate"):
+    with pytest.raises(UsageError, match="kind"):
+        read_record(path, kind="spectrum")
+    with pytest.raises(UsageError, match="either `time_col` or `rate`"):
         read_record(path, rate=10, time_col="t")
-
-
-def test_record_to_dict_is_plain(tmp_path):
-    import json
-    record = read_record(write(tmp_path, "a.csv", "t,x\n" + rows(",")))
-    data = record.to_dict()
-    json.dumps(data)
-    assert data["samples"] == T.size
 
 
 @needs_realdata

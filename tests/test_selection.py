@@ -163,10 +163,10 @@ def test_a_term_near_the_threshold_is_said_and_bootstrap_redoes_the_choice():
 
 @pytest.mark.parametrize("text", ["bacon", "abca", "", "x"])
 def test_invalid_model_letters_raise_in_the_library(text):
-    from mcfit.errors import FitError
+    from mcfit.errors import UsageError
 
     t, y = _turning_points(1.0, 0.0, 0.05, 0.0, 1.0, 20.0)
-    with pytest.raises(FitError, match="not a set of damping terms") as raised:
+    with pytest.raises(UsageError, match="not a set of damping terms") as raised:
         fit_decay(t, y, model=text)
     assert raised.value.option == "model"
 

@@ -298,15 +298,6 @@ def test_time_not_increasing():
         find_turning_points(t, np.cos(t))
 
 
-def test_result_is_plain_data():
-    import json
-    t, x = waveform(20)
-    data = find_turning_points(t, x).to_dict()
-    json.dumps(data)
-    assert set(data) >= {"t", "y", "sigma", "sign", "used", "excluded_reason", "period",
-                         "period_drift", "equilibrium", "noise_sigma", "notes"}
-
-
 def test_table_of_signed_extrema_about_an_offset():
     n = np.arange(20)
     y = amplitude(n * 0.5, 1.0, 0.0, 0.05, 0.0)

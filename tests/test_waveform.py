@@ -12,8 +12,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcfit.analysis import analyse_record, fit_turning_points
+from mcfit.fit import waveform
 from mcfit.fit.waveform import fit_waveform
 from mcfit.motion import damping_terms, integrate_accurate, simulate_record
+from mcfit import phase_plane
 from mcfit.phase_plane import phase_plane_motion
 from mcfit.records import Record, read_record
 from mcfit.turning import find_turning_points
@@ -68,6 +70,69 @@ def test_a_batch_is_its_parameter_sets_one_by_one():
                                                                 value, 0.05)[0], atol=1e-13)
 
 
+@pytest.mark.parametrize(("a", "b", "c", "theta0"), [
+    (0.0, 0.3, 0.0, 0.0),         # Q = 10
+    (0.1, 0.1, 0.01, 1.0),        # Fig. 20.19's coefficients
+    (0.0, 0.3, 0.2, 0.2),         # stops inside the record
+    (1.5, 0.0, 0.0, 4.0),         # Q about 2 at the start
+])
+def test_all_half_cycles_at_once_match_one_after_the_other(a, b, c, theta0):
+    t = np.linspace(0.0, 8.0, 801)
+    sets = tuple(np.array([[v]]) for v in (1.0, theta0, OMEGA, a, b, c))
+    at_once = phase_plane._nodes(8.0, *sets)
+    one_by_one = phase_plane._nodes_one_by_one(8.0, *sets)
+    np.testing.assert_allclose(at_once[-1], one_by_one[-1], atol=1e-12)
+    np.testing.assert_allclose(phase_plane._sampled(t, *at_once[:-1]),
+                               phase_plane._sampled(t, *one_by_one[:-1]), atol=1e-12)
+
+
+def test_too_many_half_cycles_at_once_go_one_after_the_other(monkeypatch):
+    """Memory stays bounded: past _MAX_GRID values an array (a long record, or a trial
+    frequency far off) the half-cycles are solved one after the other, to the same x."""
+    t = np.linspace(0.0, 8.0, 801)
+    sets = (1.0, 0.3, OMEGA, 0.1, 0.1, 0.01)
+    at_once = phase_plane_motion(t, *sets)
+    differences = phase_plane.phase_plane_differences(t, np.array(sets), 1e-7 * np.eye(6))
+    monkeypatch.setattr(phase_plane, "_MAX_GRID", 100)
+    monkeypatch.setattr(phase_plane, "_all_half_cycles", None)  # must not be called
+    np.testing.assert_allclose(phase_plane_motion(t, *sets), at_once, atol=1e-12)
+    bounded = phase_plane.phase_plane_differences(t, np.array(sets), 1e-7 * np.eye(6))
+    np.testing.assert_allclose(bounded[0], differences[0], atol=1e-12)
+    np.testing.assert_allclose(bounded[1], differences[1], atol=1e-9)
+
+
+@pytest.mark.parametrize(("a", "b", "c", "theta0"), [
+    (0.0, 0.3, 0.0, 0.0),
+    (0.1, 0.1, 0.01, -0.3),
+    (0.0, 0.3, 0.2, 0.2),         # stops inside the record
+    (0.0, math.pi / 2, 0.0, 0.5),  # Q = 2: every half-cycle strongly damped
+    (0.0, 0.3, 0.0, -1e-8),       # a step of theta0 crosses a multiple of pi
+])
+def test_differences_are_forward_differences_of_the_motion(a, b, c, theta0):
+    t = np.linspace(0.0, 12.0, 2401)
+    parameters = np.array([1.0, theta0, OMEGA, a, b, c])
+    columns = [0, 1, 2] + [3 + i for i in range(3) if parameters[3 + i] > 0]
+    steps = np.diag(1e-7 * np.maximum(np.abs(parameters), 1.0))[columns]
+    x, changes = phase_plane.phase_plane_differences(t, parameters, steps, memory={})
+    moved = phase_plane_motion(t, *(parameters + np.vstack([np.zeros(6), steps])).T)
+    np.testing.assert_allclose(x, moved[0], atol=1e-13)
+    reference = (moved[1:] - moved[0]) / steps.sum(axis=1)[:, None]
+    error = np.max(np.abs(changes / steps.sum(axis=1)[:, None] - reference), axis=1)
+    assert np.all(error < 1e-3 * np.max(np.abs(reference), axis=1))
+
+
+def test_differences_start_from_the_last_solution_alike():
+    t = np.linspace(0.0, 8.0, 801)
+    parameters = np.array([1.0, 0.3, OMEGA, 0.05, 0.2, 0.01])
+    steps = 1e-7 * np.eye(6)[[0, 2, 4]]
+    memory = {}
+    phase_plane.phase_plane_differences(t, parameters * 1.01, steps, memory)
+    warm = phase_plane.phase_plane_differences(t, parameters, steps, memory)
+    cold = phase_plane.phase_plane_differences(t, parameters, steps)
+    np.testing.assert_allclose(warm[0], cold[0], atol=1e-13)
+    np.testing.assert_allclose(warm[1], cold[1], atol=1e-13)
+
+
 def _low_q_record(q, coulomb_share, cycles, seed):
     rate = OMEGA / (2 * q)  # c/y0 + b at the start
     b, c = rate * (1 - coulomb_share), rate * coulomb_share
@@ -110,6 +175,24 @@ def test_waveform_candidates_and_verdict():
     assert abs(fit.values["b"] - truth["b"]) < 3 * fit.stderr["b"]
     # Chi-square in units of the sample noise estimated from sixth differences.
     assert 0.7 < fit.reduced_chi_square < 1.4
+
+
+def test_screening_far_candidates_changes_no_result(monkeypatch):
+    """Candidates far from contention are fitted to a looser tolerance: the reported fit
+    is that of fitting every candidate to full tolerance, their AICc within 1e-4."""
+    t, x, _ = _low_q_record(5, 0.1, 8, 3)
+    turning = find_turning_points(t, x)
+    start = fit_turning_points(turning)
+    assert len(waveform._likely(start, waveform.MODELS)) < 8  # some are screened
+    screened = fit_waveform(t, x, turning, start)
+    monkeypatch.setattr(waveform, "_SCREENING", waveform._TOLERANCES)
+    full = fit_waveform(t, x, turning, start)
+    assert screened.model == full.model == "bc"
+    for k in ("y0", "b", "c"):
+        assert abs(screened.values[k] - full.values[k]) < 1e-3 * full.stderr[k]
+        assert screened.stderr[k] == pytest.approx(full.stderr[k], rel=1e-3)
+    for mine, theirs in zip(screened.candidates, full.candidates):
+        assert mine.aicc == pytest.approx(theirs.aicc, rel=1e-4, abs=0.1)
 
 
 def test_auto_takes_the_waveform_at_low_q_and_says_why():
@@ -165,3 +248,13 @@ def test_a_turning_point_misfit_does_not_hide_the_averaged_laws_bias():
     assert points.reduced_chi_square > 50
     assert fit.method == "waveform" and fit.model == "b"
     assert abs(fit.values["b"] - truth["b"]) < 3 * fit.stderr["b"]
+
+
+@pytest.mark.parametrize("scale", [1e-12, 1.0, 1e12])
+def test_difference_steps_scale_with_the_signals_unit(scale):
+    """A record in other units (picometres, not metres) gets the same steps in its units:
+    y0, offset, drift and c scale with U, a with 1/U, the phase, frequency and b not."""
+    start = np.array([1.0, 0.3, 2 * np.pi, 0.0, 0.0, 0.0, 0.0, 0.0])
+    units = np.array([scale, 1.0, 1.0, scale, scale, 1.0 / scale, 1.0, scale])
+    np.testing.assert_allclose(waveform._typical(start * units, "abc"),
+                               waveform._typical(start, "abc") * units, rtol=1e-15)

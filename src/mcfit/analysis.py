@@ -12,7 +12,7 @@ from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
-from mcfit.options import FIT_METHODS
+from mcfit.options import FIT_METHODS, check_fit_options
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "crop_record", "failed_analysis",
@@ -61,20 +61,27 @@ class Analysis:
 
         return turning_points_frame(self)
 
-    def figure(self, title=None):
-        """The report figure (a matplotlib Figure; nothing is shown or saved)."""
+    def figure(self, title=None, *, panels=None, figsize=None, unit=None):
+        """The report figure (a matplotlib Figure; nothing is shown or saved).
+
+        ``title`` defaults to the file name (with the run); ``panels`` are names from
+        :data:`mcfit.options.PANELS` (default :data:`mcfit.options.DEFAULT_PANELS`);
+        ``figsize`` is (width, height) in inches; ``unit`` names the signal's unit where
+        the record's header does not (``"mm"``)."""
+        from mcfit.options import DEFAULT_PANELS
         from mcfit.plots import record_view, report_figure
 
         self._check_fitted()
-        return report_figure(record_view(self, title or self.source), self.fit)
+        return report_figure(record_view(self, title, unit), self.fit,
+                             panels or DEFAULT_PANELS, figsize)
 
-    def plot(self, ax=None):
+    def plot(self, ax=None, *, unit=None):
         """The record, its turning points and the fitted envelope on ``ax`` (a new figure's
         axes when None); returns the axes."""
         from mcfit.plots import plot_record
 
         self._check_fitted()
-        return plot_record(self, ax)
+        return plot_record(self, ax, unit)
 
     def _check_fitted(self):
         if self.status != "ok" or self.fit is None:
@@ -139,9 +146,6 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
     from mcfit.fit.waveform import fit_waveform, viscous_aicc
     from mcfit.model_error import LIMIT, averaged_law_bias
 
-    if method not in METHODS:
-        raise UsageError(f"unknown method {method!r}; use one of {', '.join(METHODS)}",
-                         option="method")
     usable = (record.kind == "waveform" and fit.domain == "time" and fit.model != "power"
               and fit.omega is not None)
     if method == "turning-points" or not usable:
@@ -213,8 +217,6 @@ def _fit_pendulum(turning, sigma, period, period_sigma, degrees, *, criterion="a
     if turning.domain != "time":
         raise FitError("the pendulum correction needs turning points against time, not "
                        "cycle number", option="pendulum")
-    if bootstrap:
-        raise FitError("the pendulum correction has no bootstrap yet", option="bootstrap")
     used = turning.used
     # Half-cycle fits of a waveform measure the fundamental; a table gives the extrema.
     table = not math.isfinite(turning.noise_sigma)
@@ -227,12 +229,9 @@ def _fit_pendulum(turning, sigma, period, period_sigma, degrees, *, criterion="a
 def crop_record(record, start=None, end=None):
     """``record`` kept to ``start <= t <= end`` (either may be None), with a note.
 
-    Raises :class:`mcfit.errors.UsageError` when the window is empty or reversed."""
+    Raises :class:`mcfit.errors.UsageError` when the window is empty."""
     if start is None and end is None:
         return record
-    if start is not None and end is not None and not start < end:
-        raise UsageError(f"the window's start {start:g} is not before its end {end:g}",
-                         option="start")
     keep = np.ones(record.t.size, dtype=bool)
     if start is not None:
         keep &= record.t >= start
@@ -268,8 +267,11 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     turning-point fit and the waveform fit (:func:`fit_by_method`).
 
     Expected failures (no usable decay, too few turning points) come back as an
-    :class:`Analysis` with ``status == "error"``; they are not raised.
+    :class:`Analysis` with ``status == "error"``; they are not raised. Options that are
+    unknown or contradict each other raise :class:`mcfit.errors.UsageError`.
     """
+    model = check_fit_options(criterion=criterion, model=model, bootstrap=bootstrap,
+                              method=method, pendulum=pendulum, start=start, end=end)
     source = record.source
     try:
         record = crop_record(record, start, end)

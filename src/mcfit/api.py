@@ -2,7 +2,7 @@
 
 The keyword options are the command line's, spelled as Python names::
 
-    read:  time_col, signal_col, sheet, rate, input, domain, run, angle_from
+    read:  time_col, signal_col, sheet, rate, kind, domain, run, angle_from
     fit:   criterion, model, bootstrap, seed, method, pendulum, degrees, start, end
 
 >>> import mcfit
@@ -17,23 +17,26 @@ The keyword options are the command line's, spelled as Python names::
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import replace
 
 import numpy as np
 
 from mcfit.analysis import Analysis, analyse_record
 from mcfit.errors import UsageError
+from mcfit.options import check_fit_options, check_read_options
 from mcfit.record import Record, detect_kind
 
 __all__ = ["analyse", "analyse_file", "analyse_files", "turning_points_frame"]
 
-READ_OPTIONS = ("time_col", "signal_col", "sheet", "rate", "input", "domain", "run",
+READ_OPTIONS = ("time_col", "signal_col", "sheet", "rate", "kind", "domain", "run",
                 "angle_from")
 FIT_OPTIONS = ("criterion", "model", "bootstrap", "seed", "method", "pendulum", "degrees",
                "start", "end")
 
 
-def analyse(t, x=None, *, source="<arrays>", kind=None, domain="time", **options) -> Analysis:
+def analyse(t, x=None, *, source="<arrays>", kind=None, domain="time", unit=None,
+            **options) -> Analysis:
     """Find the turning points of a record and fit the damping law to them.
 
     Parameters
@@ -47,6 +50,8 @@ def analyse(t, x=None, *, source="<arrays>", kind=None, domain="time", **options
     kind : {"waveform", "turning-points"}, optional
         What ``x`` holds [default: detected].
     domain : {"time", "cycle"}
+    unit : str, optional
+        The signal's unit (``"mm"``), for the figure's axes and coefficients.
     **options
         The fit's options (``FIT_OPTIONS``), e.g. ``model="ab"``, ``method="waveform"``,
         ``bootstrap=200, seed=1``.
@@ -75,12 +80,15 @@ def analyse(t, x=None, *, source="<arrays>", kind=None, domain="time", **options
                              f"{x.shape}.")
         record = Record(source=source, t=t, x=x, kind=kind or detect_kind(t, x),
                         domain=domain, time_unit="s" if domain == "time" else None)
+    if unit:
+        record = replace(record, signal_unit=unit)
     return analyse_record(record, **_fit_keywords(options))
 
 
-def analyse_file(path, **options) -> Analysis:
+def analyse_file(path, *, unit=None, **options) -> Analysis:
     """:func:`analyse` of a record file (CSV, text, Excel...); for a file of several runs
-    side by side give ``run=N``, or use :func:`analyse_files` for every run."""
+    side by side give ``run=N``, or use :func:`analyse_files` for every run. ``unit``
+    names the signal's unit where the header does not (``Position (mm)`` does)."""
     from mcfit.records import read_records
 
     records = read_records(path, **_taken(options, READ_OPTIONS))
@@ -88,7 +96,8 @@ def analyse_file(path, **options) -> Analysis:
     if len(records) > 1:
         raise UsageError(f"{path} holds {len(records)} runs side by side; give run=N for "
                          "one, or use analyse_files for all of them.")
-    return replace(analyse_record(records[0], **keywords), source=records[0].name)
+    record = replace(records[0], signal_unit=unit) if unit else records[0]
+    return replace(analyse_record(record, **keywords), source=record.name)
 
 
 def analyse_files(paths, *, jobs=1, **options):
@@ -104,6 +113,9 @@ def analyse_files(paths, *, jobs=1, **options):
 
     chosen = _taken(options, READ_OPTIONS + FIT_OPTIONS)
     _nothing_else(options, READ_OPTIONS + FIT_OPTIONS)
+    # Refused here, once, rather than in every file's row.
+    _checked(check_read_options, chosen)
+    chosen["model"] = _checked(check_fit_options, chosen)
     sources = batch.expand_inputs([str(p) for p in ([paths] if isinstance(paths, str)
                                                    else paths)])
     fit_options = batch.FitOptions(output_format="csv", **chosen)
@@ -126,6 +138,12 @@ def turning_points_frame(analysis: Analysis):
     table = pd.DataFrame(turning_points_table(analysis), columns=TURNING_POINT_COLUMNS)
     return table.drop(columns="source").astype({"amplitude": float, "sigma": float,
                                                 "envelope": float})
+
+
+def _checked(check, options):
+    """``check`` called with the ``options`` it takes."""
+    taken = inspect.signature(check).parameters
+    return check(**{k: v for k, v in options.items() if k in taken})
 
 
 def _taken(options, names):

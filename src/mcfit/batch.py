@@ -40,7 +40,7 @@ class FitOptions:
     signal_col: str | int | None = None
     sheet: str | int | None = None
     rate: float | None = None
-    input: str | None = None
+    kind: str | None = None
     domain: str | None = None
     criterion: str = "aicc"
     model: str | None = None
@@ -55,6 +55,10 @@ class FitOptions:
     end: float | None = None
     run: int | None = None  # of a file's runs side by side, the one to fit (None: all)
     angle_from: tuple | None = None  # (x, y) columns of a tracked pendulum bob
+    unit: str | None = None  # the signal's unit for the figure, where the header names none
+    title: str | None = None  # the figure's title (default: the file name)
+    panels: tuple | None = None  # the figure's panels (default: mcfit.options.DEFAULT_PANELS)
+    figsize: tuple | None = None  # the figure's (width, height) in inches
 
 
 @dataclass(frozen=True)
@@ -152,7 +156,7 @@ def _job_for(source, options, plot_path):
     try:
         records = read_records(source, time_col=options.time_col,
                                signal_col=options.signal_col, sheet=options.sheet,
-                               rate=options.rate, input=options.input, domain=options.domain,
+                               rate=options.rate, kind=options.kind, domain=options.domain,
                                run=options.run, angle_from=options.angle_from)
     except McfitError as error:
         return FileResult.failed(source, " ".join(str(error).split()), options)
@@ -199,8 +203,8 @@ def _record_job(source, record, options, plot_path):
     plot_error = None
     if plot_path is not None and analysis.status == "ok":
         try:
-            _plot(analysis, plot_path)
-        except (OSError, ValueError) as error:
+            _plot(analysis, plot_path, options)
+        except (OSError, ValueError, McfitError) as error:
             plot_error = f"cannot write plot {plot_path}: {error}"
     rows = turning_points_rows(analysis) if options.turning_points_out else ""
     return analysis, JobResult(source=analysis.source, status=analysis.status,
@@ -223,17 +227,16 @@ def _display_name(source) -> str:
     return "<stdin>" if source == "-" else str(source)
 
 
-def _figure_title(source: str, longest: int = 60) -> str:
-    """The record's path as given (records of one name in two folders differ), its end
-    only when it is too long for the figure's title."""
-    return source if len(source) <= longest else "..." + source[-(longest - 3):]
+def _plot(analysis, path, options):
+    from mcfit.plots import save_figure
 
-
-def _plot(analysis, path):
-    from mcfit.plots import record_view, report_figure, save_figure
-
-    view = record_view(analysis, _figure_title(analysis.source))
-    save_figure(report_figure(view, analysis.fit), path)
+    title = options.title
+    run = getattr(analysis.record, "run", None)
+    if title is not None and run:
+        title = f"{title}, {run}"
+    figure = analysis.figure(title, panels=options.panels, figsize=options.figsize,
+                             unit=options.unit)
+    save_figure(figure, path)
 
 
 def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):

@@ -14,14 +14,15 @@ import os
 import signal
 import sys
 import warnings
-from pathlib import Path
 
 import click
 
 from mcfit import __version__
 from mcfit.errors import ClosedOutputError, McfitError, UsageError, escape_controls, printable
 from mcfit.files import Output, is_regular_or_new
-from mcfit.options import for_command_line
+from mcfit.options import (BENCH_SECTIONS, CRITERIA, DOMAINS, FIT_METHODS, FORMATS, KINDS,
+                           PANELS, SIMULATE_METHODS, check_fit_options, check_plot_name,
+                           check_read_options, for_command_line, parse_figsize, parse_panels)
 
 __all__ = ["cli", "main", "McfitGroup"]
 
@@ -204,8 +205,7 @@ Example (the handbook's Figure 20.19, with noise):
               help="Linear drift added to x, U per second.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the noise generator; the same seed gives the same record.")
-@click.option("--method", type=click.Choice(["auto", "averaged", "cromer-euler", "symplectic",
-                                             "accurate"]),
+@click.option("--method", type=click.Choice(SIMULATE_METHODS),
               default="auto", show_default=True, help="How to compute x(t) (see above).")
 @click.option("--dt", type=_POSITIVE, default=None,
               help="Step in seconds for cromer-euler and symplectic "
@@ -292,11 +292,11 @@ def _column(value):
 @click.option("--sheet", metavar="NAME|N", help="Excel sheet, by name or 1-based index.")
 @click.option("--rate", type=_POSITIVE, metavar="HZ",
               help="Sample rate: time from the sample index (no or unusable time column).")
-@click.option("--input", "input_kind", type=click.Choice(["waveform", "turning-points"]),
+@click.option("--input", "input_kind", type=click.Choice(KINDS),
               help="Kind of record [default: detected].")
-@click.option("--domain", type=click.Choice(["time", "cycle"]),
+@click.option("--domain", type=click.Choice(DOMAINS),
               help="Whether the first column is time or cycle number n [default: detected].")
-@click.option("--criterion", type=click.Choice(["aicc", "bic"]), default="aicc",
+@click.option("--criterion", type=click.Choice(CRITERIA), default="aicc",
               show_default=True, help="Information criterion that chooses the regimes.")
 @click.option("--model", metavar="LETTERS|none|power",
               help="Force the regimes, e.g. ab; none for constant amplitude; power for "
@@ -306,12 +306,12 @@ def _column(value):
                    "each chooses the model anew.")
 @click.option("--seed", type=click.IntRange(min=0), default=None,
               help="Seed of the bootstrap resampling.")
-@click.option("--method", type=click.Choice(["auto", "turning-points", "waveform"]),
+@click.option("--method", type=click.Choice(FIT_METHODS),
               default="auto", show_default=True,
               help="Fit the turning points by the averaged law, or the waveform by the "
                    "equation of motion; auto takes the waveform only where the averaged "
                    "law's bias would exceed 0.3 standard errors (low Q).")
-@click.option("--format", "output_format", type=click.Choice(["text", "json", "csv"]),
+@click.option("--format", "output_format", type=click.Choice(FORMATS),
               default="text", show_default=True, help="Output format.")
 @click.option("-o", "--output", type=click.Path(allow_dash=True), default="-",
               help="Write results to this file (whole, via a temporary file); - for stdout.")
@@ -347,9 +347,20 @@ def _column(value):
 @click.option("--degrees", is_flag=True,
               help="The angle is in degrees (also when the signal column's name says 'deg' "
                    "or '°').")
+@click.option("--unit", metavar="TEXT",
+              help="The signal's unit for the figure's axes and coefficients (mm gives a "
+                   "in 1/(mm*s)) [default: from the header, e.g. 'Position (mm)'].")
+@click.option("--title", metavar="TEXT",
+              help="The figure's title [default: the file name, with the run].")
+@click.option("--panels", metavar="LIST",
+              help="The figure's panels, in order, from: " + ", ".join(PANELS)
+                   + " (qamp: Q against amplitude; backbone: period against amplitude) "
+                   "[default: record,amplitude,q,rate].")
+@click.option("--figsize", metavar="W,H", help="The figure's size in inches, e.g. 12,9.")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
         bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs, dask,
-        turning_points_out, start, end, run, angle_from, pendulum, degrees):
+        turning_points_out, start, end, run, angle_from, pendulum, degrees, unit, title,
+        panels, figsize):
     if dask is not None and jobs > 1:
         raise UsageError("give --dask ADDRESS or --jobs N, not both: with --dask the "
                          "cluster's workers fit the records.")
@@ -358,35 +369,27 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     # and in the workers); user settings win.
     for variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
         os.environ.setdefault(variable, "1")
-    if model is not None:
-        model = _parsed_model(model)
-    if pendulum and bootstrap:
-        raise UsageError("--bootstrap is not available with --pendulum yet.")
-    if pendulum and method != "auto":
-        raise UsageError("--method is not available with --pendulum: the pendulum's law is "
-                         "fitted to the turning points.")
+    angle_from = _angle_columns(angle_from)
+    check_read_options(kind=input_kind, domain=domain, rate=rate, time_col=time_col,
+                       signal_col=signal_col, angle_from=angle_from)
+    model = check_fit_options(criterion=criterion, model=model, bootstrap=bootstrap,
+                              method=method, pendulum=pendulum, start=start, end=end)
     if turning_points_out == "-" and output == "-":
         raise UsageError("--turning-points-out - and the results would share stdout; give "
                          "one of them a file name (-o FILE or --turning-points-out FILE.csv).")
-    if pendulum and model == "power":
-        raise UsageError("--model power is not available with --pendulum.")
-    if start is not None and end is not None and not start < end:
-        raise UsageError(f"--start {start:g} must come before --end {end:g}.")
     if plot_file is not None and plot_dir is not None:
         raise UsageError("give --plot FILE or --plot-dir DIR, not both.")
-    if rate is not None and time_col is not None:
-        raise UsageError("give either --time-col or --rate (time from the sample index), "
-                         "not both.")
-    if plot_file is not None and os.path.splitext(plot_file)[1].lower() not in (".png", ".pdf",
-                                                                                ".svg"):
-        raise UsageError(f"--plot {plot_file}: the name must end in .png, .pdf or .svg.")
+    if plot_file is not None:
+        check_plot_name(plot_file)
+    figure_options = _figure_options(plot_file or plot_dir, unit=unit, title=title,
+                                     panels=panels, figsize=figsize)
     options = dict(time_col=_column(time_col), signal_col=_column(signal_col),
-                   sheet=_column(sheet), rate=rate, input=input_kind, domain=domain,
+                   sheet=_column(sheet), rate=rate, kind=input_kind, domain=domain,
                    criterion=criterion, model=model,
                    bootstrap=bootstrap, seed=seed, method=method, pendulum=pendulum,
                    degrees=True if degrees else None, start=start, end=end, run=run,
-                   angle_from=_angle_columns(angle_from, signal_col),
-                   turning_points_out=turning_points_out is not None)
+                   angle_from=angle_from,
+                   turning_points_out=turning_points_out is not None, **figure_options)
     with _stop_signals_interrupt():
         try:
             failures = _fit_files(files, output, output_format, plot_file, plot_dir, jobs,
@@ -398,7 +401,20 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     sys.exit(1 if failures else 0)
 
 
-def _angle_columns(text, signal_col):
+def _figure_options(plot, **given):
+    """The figure's options, checked; refused without a figure to apply them to."""
+    named = [f"--{name}" for name, value in given.items() if value is not None]
+    if named and plot is None:
+        raise UsageError(f"{', '.join(named)} shape{'s' if len(named) == 1 else ''} the "
+                         "figure: give --plot FILE or --plot-dir DIR too.")
+    if given["panels"] is not None:
+        given["panels"] = parse_panels(given["panels"])
+    if given["figsize"] is not None:
+        given["figsize"] = parse_figsize(given["figsize"])
+    return given
+
+
+def _angle_columns(text):
     """The (x, y) columns of --angle-from X,Y, or None."""
     if text is None:
         return None
@@ -406,9 +422,6 @@ def _angle_columns(text, signal_col):
     if len(parts) != 2 or not all(parts):
         raise UsageError(f"--angle-from {text!r}: give the bob's two columns as X,Y, e.g. "
                          "--angle-from x,y or --angle-from 2,3.")
-    if signal_col is not None:
-        raise UsageError("give --angle-from X,Y or --signal-col, not both: the angle is the "
-                         "signal.")
     return tuple(_column(part) for part in parts)
 
 
@@ -458,18 +471,6 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
                               turning_points_out=turning_points_out)
     finally:
         results.close()  # ends the worker processes at once after an error
-
-
-def _parsed_model(text):
-    """The model named by --model, or a usage error in the option's own words."""
-    from mcfit.errors import FitError
-    from mcfit.fit.models import parse_model
-
-    try:
-        return parse_model(text)
-    except FitError:
-        raise UsageError(f"--model {text!r} is not a set of regimes; use letters from abc "
-                         "(e.g. ab), none or power.") from None
 
 
 def _refuse_outputs_that_clash(outputs, arguments, sources):
@@ -618,10 +619,13 @@ Sections:
   methods      the turning-point fit against the waveform fit by the equation
                of motion at Q 2 to 50: b's bias, RMSE and coverage in standard
                errors, time per record, and how often --method auto chose each
-  throughput   records per second in batch, peak memory, start-up time
+  throughput   each speed target of issue 17 against its measured figure:
+               turning points + fit per record, mcfit DIR at --jobs 1 and 2
+               (--method auto and turning-points), start-up, and with --full
+               a CSV of 10^7 samples (time and peak memory)
 
-The default quick grid runs in about two minutes; --full runs the whole grid
-(about an hour, most of it the methods section). Times are wall-clock on this
+The default quick grid runs in a few minutes; --full runs the whole grid
+(about an hour, most of it the methods section). Times are measured on this
 machine; nothing is asserted.
 
 \b
@@ -635,7 +639,7 @@ Examples:
 @cli.command("bench", help=_BENCH_HELP, short_help="Benchmark integrators, fits and throughput.")
 @click.option("--full", is_flag=True, help="Run the full grid (minutes) instead of the quick one.")
 @click.option("--section", "sections", multiple=True,
-              type=click.Choice(["integrators", "fitting", "verdicts", "methods", "throughput"]),
+              type=click.Choice(BENCH_SECTIONS),
               help="Run only this section (repeatable) [default: all].")
 @click.option("--repeats", type=click.IntRange(min=2), default=None, metavar="N",
               help="Noisy records per fitting cell [default: 8 quick, 100 full].")

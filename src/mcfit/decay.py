@@ -15,8 +15,10 @@ Phi is analytic across u = 0 (a series is used there), so b**2 = 4ac needs no sp
 Where D > 0 and s*t >= 1 (s = sqrt(sigma)) the same expression is rewritten with
 E = exp(-2*s*t) so that exponential tails keep their relative accuracy.
 
-One parameter set at sorted times (a fit's case) is evaluated by a faster path with the
-same formulas; parameter arrays and unsorted times by the general one.
+The law is written once, for one parameter set (:class:`_Law`): its constants and regime
+(the sign of D, whether and when it stops) are Python floats computed once, and the times
+go through a few vectorised operations (:class:`_Terms`). Arrays of parameter sets are
+evaluated set by distinct set.
 """
 
 from __future__ import annotations
@@ -53,43 +55,28 @@ _PHI_SERIES = np.array([
     9.691537956929451e-05, -3.927832388331683e-05,
 ])
 _PHI_DERIVATIVE_SERIES = _PHI_SERIES[1:] * np.arange(1, _PHI_SERIES.size)
+# Phi and Phi' as the rows of one matrix, so that one product with the powers of u gives both.
+_SERIES = np.array([_PHI_SERIES[:-1], _PHI_DERIVATIVE_SERIES])
+# Smallest |u| at which term k >= 1 of either series exceeds 2**-56 of its first term: where
+# the largest |u| is below _SERIES_NEEDS[k-1], terms from k on are below rounding.
+_SERIES_NEEDS = tuple(
+    min(float((2.0**-56 * abs(row[0]) / abs(row[k])) ** (1.0 / k)) for row in _SERIES)
+    for k in range(1, _SERIES.shape[1]))
+_EXPONENTS = np.arange(float(_SERIES.shape[1]))[:, None]
+# Powers of u for the series by one np.power call (about 10 ns per element) up to this many
+# elements, beyond it row by row (about 1 us per call).
+_POWER_CALL_LIMIT = 600
+# Below this s, s*theta may underflow where theta is small: tau comes from its series there.
+_TINY_S = 1e-100
 # Below this |u| the series is exact to rounding (0.04**11 < 1e-15); above it the direct
 # formula for Phi' loses at most 1.5*eps/|u| to cancellation.
 _SERIES_LIMIT = 0.1
 # Where D > 0 and s*t exceeds this, use the exponential form (no tanh -> 1 cancellation).
 _EXPONENTIAL_FORM_LIMIT = 1.0
-
-
-def _phi(u):
-    """Phi(u) and dPhi/du, evaluated stably for every real u (see module docstring)."""
-    u = np.asarray(u, dtype=float)
-    phi = np.empty_like(u)
-    dphi = np.empty_like(u)
-    small = np.abs(u) < _SERIES_LIMIT
-    if np.any(small):
-        phi[small] = np.polynomial.polynomial.polyval(u[small], _PHI_SERIES)
-        dphi[small] = np.polynomial.polynomial.polyval(u[small], _PHI_DERIVATIVE_SERIES)
-
-    positive = (~small) & (u > 0)
-    z = np.sqrt(u[positive])
-    e = np.exp(-2.0 * z)
-    tanh = (1.0 - e) / (1.0 + e)
-    sech2 = 4.0 * e / (1.0 + e) ** 2
-    phi[positive] = tanh / z
-    dphi[positive] = (z * sech2 - tanh) / (2.0 * z**3)
-
-    negative = (~small) & (u < 0)
-    z = np.sqrt(-u[negative])
-    tan = np.tan(z)
-    phi[negative] = tan / z
-    dphi[negative] = -(z * (1.0 + tan**2) - tan) / (2.0 * z**3)
-    return phi, dphi
-
-
-def _discriminant_quarter(a, b, c):
-    """sigma = b**2/4 - a*c, factored so that no product overflows."""
-    g = np.sqrt(a) * np.sqrt(c)
-    return (0.5 * b - g) * (0.5 * b + g)
+# Normalized time is capped here: by then y < 1e-100*y0 whatever the coefficients, because
+# the largest normalized rate is 1 (see _Law).
+_MAX_NORMALIZED_TIME = 1e100
+_LOG_MAX_NORMALIZED_TIME = math.log(_MAX_NORMALIZED_TIME)
 
 
 def _as_flat_arrays(*values):
@@ -102,83 +89,337 @@ def _shape_of(*values):
     return np.broadcast(*(np.asarray(v) for v in values)).shape
 
 
-# Normalized time is capped here: by then y < 1e-100*y0 whatever the coefficients, because
-# the largest normalized rate is 1 (see _normalize).
-_MAX_NORMALIZED_TIME = 1e100
+def _log(value):
+    return math.log(value) if value > 0 else -math.inf
 
 
-class _Normalized:
-    """The law in units where y0 = 1 and the largest of c/y0, b, a*y0 is 1.
+def _exp(value):
+    """math.exp, with inf instead of OverflowError."""
+    return math.exp(value) if value < 709.0 else math.inf
 
-    ``y(t; y0, a, b, c) = y0 * eta(r*t; 1, a*y0/r, b/r, c/(y0*r))`` holds for every r > 0,
-    so all arithmetic below works on numbers of order one and nothing overflows.
+
+class _Law:
+    """One parameter set (y0 > 0, a, b, c >= 0, all finite) in normalized units.
+
+    ``y(t; y0, a, b, c) = y0 * eta(r*t; 1, a*y0/r, b/r, c/(y0*r))`` holds for every r > 0;
+    r is the largest of c/y0, b and a*y0, so the normalized coefficients are at most 1 and
+    nothing overflows. The constants of the closed form and the stop are computed here,
+    once, as Python floats.
     """
 
     def __init__(self, y0, a, b, c):
-        self.y0 = np.where(y0 > 0, y0, 1.0)  # y0 = 0 is handled by the callers
-        with np.errstate(over="ignore"):
-            rate_c = c / self.y0
-            rate_a = a * self.y0
-        rate = np.maximum(np.maximum(rate_c, b), rate_a)
+        self.y0 = y0
+        rate_c, rate_a = c / y0, a * y0  # Python floats give inf on overflow, no exception
+        rate = max(rate_c, b, rate_a)
         self.log_rate = None
-        if np.all(np.isfinite(rate)):
-            self.rate = np.where(rate > 0, rate, 1.0)
-            self.a = rate_a / self.rate
-            self.b = b / self.rate
-            self.c = rate_c / self.rate
+        if rate < math.inf:
+            rate = rate if rate > 0 else 1.0
+            a, b, c = rate_a / rate, b / rate, rate_c / rate
         else:  # a rate beyond the float range: the same scaling, done in logarithms
-            with np.errstate(divide="ignore"):
-                logs = np.stack([np.log(a) + np.log(self.y0), np.log(b),
-                                 np.log(c) - np.log(self.y0)])
-            log_rate = np.max(logs, axis=0)
-            log_rate = np.where(np.isfinite(log_rate), log_rate, 0.0)
-            self.a, self.b, self.c = np.exp(logs - log_rate)
-            self.log_rate = log_rate
-            with np.errstate(over="ignore"):
-                self.rate = np.exp(log_rate)
+            logs = (_log(a) + math.log(y0), _log(b), _log(c) - math.log(y0))
+            self.log_rate = max(logs)
+            a, b, c = (math.exp(v - self.log_rate) for v in logs)
+        self.rate, self.a, self.b, self.c = rate, a, b, c
+        g = math.sqrt(a) * math.sqrt(c)
+        self.sigma = (0.5 * b - g) * (0.5 * b + g)  # b**2/4 - a*c without overflow
+        self.s = math.sqrt(abs(self.sigma))
+        self.k = c + 0.5 * b
+        self.m = a + 0.5 * b
+        self.theta_stop = self._normalized_stop_time()
+        self.t_stop = self.per_rate(self.theta_stop)  # exactly what stop_time() returns
 
-    def time(self, t):
-        """Normalized time r*t, capped at _MAX_NORMALIZED_TIME."""
-        if self.log_rate is None:
-            with np.errstate(over="ignore"):
-                return np.minimum(self.rate * t, _MAX_NORMALIZED_TIME)
-        with np.errstate(divide="ignore"):
-            log_time = np.minimum(self.log_rate + np.log(t), np.log(_MAX_NORMALIZED_TIME))
-        return np.exp(log_time)
+    def _normalized_stop_time(self):
+        a, b, c, s, k, sigma = self.a, self.b, self.c, self.s, self.k, self.sigma
+        if c <= 0:
+            return math.inf
+        tau_stop = 1.0 / k  # y = 0 where tau*K = 1
+        if sigma > 0:
+            # 1 - z written without cancellation: b/2 - s = a*c/(b/2 + s).
+            one_minus_z = (c + a * c / (0.5 * b + s)) / k
+            if one_minus_z == 0:
+                return math.inf  # a Coulomb term too faint to stop within floats
+            result = 0.5 * math.log1p(2.0 * (s * tau_stop) / one_minus_z) / s
+        elif sigma < 0:
+            result = math.atan(s * tau_stop) / s
+        else:
+            result = tau_stop
+        return result if result == result else math.inf
 
     def per_rate(self, value):
-        """value / r, without overflow or underflow to a wrong zero where avoidable."""
+        """A normalized time or derivative over r (value/r), as a float."""
         if self.log_rate is None:
             return value / self.rate
-        with np.errstate(invalid="ignore"):
-            return np.where(np.isinf(value), value, value * np.exp(-self.log_rate))
+        if value == 0 or value == math.inf:
+            return value
+        return math.copysign(_exp(math.log(abs(value)) - self.log_rate), value)
+
+    def time(self, t):
+        """Normalized time r*t, capped at _MAX_NORMALIZED_TIME (no overflow on the way)."""
+        if self.log_rate is None:
+            if t.size and float(t[-1]) * self.rate <= _MAX_NORMALIZED_TIME:  # t is sorted
+                return t * self.rate
+            return np.minimum(t, _MAX_NORMALIZED_TIME / self.rate) * self.rate
+        with np.errstate(divide="ignore"):
+            size = np.exp(np.minimum(self.log_rate + np.log(np.abs(t)),
+                                     _LOG_MAX_NORMALIZED_TIME))
+        return np.copysign(size, t)
 
 
-def _normalized_stop_time(a, b, c):
-    """Stop time of the normalized law (y0 = 1); inf where c == 0."""
-    sigma = _discriminant_quarter(a, b, c)
-    k = c + 0.5 * b
-    result = np.full(a.shape, np.inf)
-    stops = c > 0
-    tau_stop = np.zeros(a.shape)
-    s = np.sqrt(np.abs(sigma))
-    # A Coulomb term below ~1e-308 of the largest rate stops the motion beyond any float
-    # time: those stop times come out as inf, which is what they are for every use here.
-    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        tau_stop[stops] = 1.0 / k[stops]
-        overdamped = stops & (sigma > 0)
-        so, ao, co, ko, to = (v[overdamped] for v in (s, a, c, k, tau_stop))
-        z = so * to
-        # 1 - z written without cancellation: b/2 - s = a*c/(b/2 + s).
-        one_minus_z = (co + ao * co / (0.5 * b[overdamped] + so)) / ko
-        result[overdamped] = 0.5 * np.log1p(2.0 * z / one_minus_z) / so
-        underdamped = stops & (sigma < 0)
-        result[underdamped] = np.arctan(s[underdamped] * tau_stop[underdamped]) / s[underdamped]
-    result = np.where(np.isnan(result), np.inf, result)
+def _law_or_none(y0, a, b, c):
+    """The _Law of one parameter set, or None where there is none (y0 <= 0, a negative,
+    infinite or NaN value)."""
+    if y0 > 0 and 0 <= a < math.inf and 0 <= b < math.inf and 0 <= c < math.inf \
+            and y0 < math.inf:
+        return _Law(y0, a, b, c)
+    return None
 
-    critical = stops & (sigma == 0)
-    result[critical] = tau_stop[critical]
-    return result
+
+class _Terms:
+    """The normalized amplitude of one parameter set at sorted times ``t`` (flat) and the
+    pieces its Jacobian reuses; the Jacobian is computed only when asked for.
+
+    tau = tanh(s*theta)/s or tan(s*theta)/s, and theta*Phi(u) by its series where
+    |u| = |sigma|*theta**2 is small; d tau/d sigma = theta**3 * Phi'(u) likewise. Normalized
+    time grows with t, so each branch (series, direct, exponential form, stopped) covers
+    one contiguous slice of the times: the branches work on views, without masks. On a
+    fit's 10 to 1000 points each numpy call costs more than its arithmetic.
+    """
+
+    def __init__(self, law, t):
+        self.law = law
+        n = t.size
+        theta = law.time(t)
+        # Running while t < t_stop (exactly what stop_time() returns); y = 0 after, and at
+        # a time that is NaN (sorted last).
+        n_run = n if n == 0 or float(t[-1]) < law.t_stop else int(t.searchsorted(law.t_stop))
+        if n_run < n or law.theta_stop < math.inf:
+            theta = np.minimum(theta[:n_run], law.theta_stop)  # no step past tan's pole
+        s, sigma, k, m = law.s, law.sigma, law.k, law.m
+        # Slices: [series_start, series_end) where |u| < _SERIES_LIMIT, [far, n_run) where
+        # s*theta >= 1 and D > 0 (the exponential form).
+        series_start = series_end = 0
+        far = n_run
+        if sigma == 0:
+            tau = theta
+        else:
+            z = s * theta
+            trig = np.tanh(z) if sigma > 0 else np.tan(z)
+            tau = trig / s
+            self.z, self.trig = z, trig
+            if n_run:
+                limit = math.sqrt(_SERIES_LIMIT)  # |u| = z**2 < _SERIES_LIMIT
+                first, last = float(z[0]), float(z[-1])
+                series_start = int(z.searchsorted(-limit, "right")) if first <= -limit else 0
+                series_end = int(z.searchsorted(limit)) if last >= limit else n_run
+                if sigma > 0 and last >= _EXPONENTIAL_FORM_LIMIT:
+                    far = int(z.searchsorted(_EXPONENTIAL_FORM_LIMIT))
+        self.n_run, self.series, self.far = n_run, (series_start, series_end), far
+        self.theta, self.tau = theta, tau
+        if s < _TINY_S and series_end > series_start:  # s*theta may underflow: theta*Phi(u)
+            theta_s, phi = self._series(series_start, series_end, 0)
+            np.multiply(theta_s, phi, out=tau[series_start:series_end])
+        self.denominator = 1.0 + tau * m
+        eta = np.zeros(n)
+        running = eta[:n_run]
+        np.divide(1.0 - tau[:far] * k, self.denominator[:far], out=running[:far])
+        if far < n_run:  # written with E = exp(-2z), so exponential tails keep their digits
+            a, c = law.a, law.c
+            e = np.exp(-2.0 * self.z[far:])
+            h = 0.5 * law.b + s
+            np.divide(e * (s + k) - c * (1.0 + a / h), (s + m) - e * (a * (1.0 + c / h)),
+                      out=running[far:])
+        np.maximum(running, 0.0, out=running)
+        self.eta = eta
+
+    def _series(self, start, end, row):
+        """Row ``row`` of _SERIES (0: Phi, 1: Phi') at u = sigma*theta**2 on [start, end)."""
+        theta = self.theta[start:end]
+        if theta.size == 0:
+            return theta, theta
+        u = self.law.sigma * (theta * theta)
+        largest = max(abs(float(u[0])), abs(float(u[-1])))  # theta is sorted
+        degree = bisect.bisect_right(_SERIES_NEEDS, largest)
+        if u.size * degree <= _POWER_CALL_LIMIT:
+            powers = u ** _EXPONENTS[:degree + 1]
+        else:
+            powers = np.empty((degree + 1, u.size))
+            powers[0] = 1.0
+            for j in range(1, degree + 1):
+                np.multiply(powers[j - 1], u, out=powers[j])
+        return theta, _SERIES[row, :degree + 1] @ powers
+
+    def amplitude(self):
+        """y = y0 * eta, flat."""
+        return self.law.y0 * self.eta
+
+    def _dtau_dsigma(self):
+        """d tau/d sigma = theta**3 * Phi'(u) (<= 0) while running."""
+        law, theta = self.law, self.theta
+        sigma, s = law.sigma, law.s
+        if sigma == 0:  # Phi'(0) = -1/3
+            return theta * theta * theta * _PHI_DERIVATIVE_SERIES[0]
+        start, end = self.series
+        if start == 0 and end == self.n_run:  # (where 1/s**3 may overflow)
+            theta_s, dphi = self._series(start, end, 1)
+            return theta_s * theta_s * theta_s * dphi
+        # The direct formula. Where s*theta >= 1, 1 - tanh**2 keeps only an absolute error
+        # of eps, but the result is at least 0.34 and z*sech(z)**2 < eps beyond z = 19: the
+        # result stays within about 60 ulp.
+        z, trig = self.z, self.trig
+        square = trig * trig
+        if sigma > 0:
+            dtau = z * (1.0 - square) - trig
+        else:
+            dtau = trig - z * (1.0 + square)
+        dtau *= 0.5 / (s * s * s)
+        if end > start:
+            theta_s, dphi = self._series(start, end, 1)
+            np.multiply(theta_s * theta_s * theta_s, dphi, out=dtau[start:end])
+        return dtau
+
+    def jacobian(self):
+        """dy/d(y0, a, b, c), shape (4, n)."""
+        law, n_run, far = self.law, self.n_run, self.far
+        eta = self.eta[:n_run]
+        a, b, c, k, m = law.a, law.b, law.c, law.k, law.m
+        # Normalized units: the rows of the basis [T, S, eta*T, 1, eta, eta**2], with
+        # T = tau/(1 + tau*M) and S = (d tau/d sigma)*(K + eta*M)/(1 + tau*M) (<= 0), combine
+        # into d eta/da = c*S - eta*T, d eta/db = -(b*S + T + eta*T)/2, d eta/dc = a*S - T,
+        # and dy/dy0 = P(y)/P(y0) (the flow of an autonomous ODE), by one matrix product.
+        basis = np.empty((6, n_run))
+        t_part, s_part = basis[0], basis[1]
+        np.divide(self.tau, self.denominator, out=t_part)
+        np.multiply(eta, m, out=s_part)
+        s_part += k
+        s_part *= self._dtau_dsigma()
+        s_part /= self.denominator
+        np.multiply(eta, t_part, out=basis[2])
+        basis[3] = 1.0
+        basis[4] = eta
+        np.multiply(eta, eta, out=basis[5])
+        total = a + b + c  # >= 1 after normalizing, unless there is no damping at all
+        y0_row = ((0.0, 0.0, 0.0, c / total, b / total, a / total) if total > 0
+                  else (0.0, 0.0, 0.0, 1.0, 0.0, 0.0))
+        combination = np.array([y0_row, (0.0, c, -1.0, 0.0, 0.0, 0.0),
+                                (-0.5, -0.5 * b, -0.5, 0.0, 0.0, 0.0),
+                                (-1.0, a, 0.0, 0.0, 0.0, 0.0)])
+        if n_run == self.eta.size:
+            jacobian = combination @ basis
+        else:
+            jacobian = np.zeros((4, self.eta.size))
+            jacobian[:, :n_run] = combination @ basis
+        if far < n_run:
+            # Where s*theta >= 1: the time-scaling identity a*dy/da + b*dy/db + c*dy/dc
+            # = -t*P(y) gives dy/db without the cancellation of the formula above.
+            d_y0, d_a, d_b, d_c = jacobian[:, far:n_run]
+            rate_theta = d_y0 * (total * -1.0 / b)
+            rate_theta *= self.theta[far:]
+            np.subtract(rate_theta, (c / b) * d_c + (a / b) * d_a, out=d_b)
+        self._to_physical(jacobian[1:])
+        return jacobian
+
+    def _to_physical(self, derivatives):
+        """d eta/d(normalized a, b, c) -> dy/d(a, b, c), in place."""
+        law, y0 = self.law, self.law.y0
+        y0_per_rate = law.per_rate(y0)
+        factors = (y0_per_rate * y0, y0_per_rate, law.per_rate(1.0))
+        if derivatives.size == 0:
+            return
+        flat = derivatives.reshape(-1)
+        if max(factors) <= 1e150 and float(flat @ flat) <= 1e300:  # no overflow below
+            derivatives *= np.array(factors)[:, None]
+            return
+        d_a, d_b, d_c = derivatives
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            # In two steps, so that an intermediate product cannot overflow where the
+            # result does not; an infinite factor must not turn an exact zero into NaN.
+            np.multiply(d_a, y0_per_rate, out=d_a, where=d_a != 0)
+            d_a *= y0
+            d_b *= y0
+            for row in (d_b, d_c):
+                if law.log_rate is None:
+                    row /= law.rate
+                else:
+                    np.multiply(row, math.exp(-law.log_rate), out=row, where=np.isfinite(row))
+
+
+class _NoLaw:
+    """y0 = 0, or no law at all (a negative, infinite or NaN value: NaN out)."""
+
+    def __init__(self, t, y0, a, b, c):
+        self.t, self.b, self.c = t, b, c
+        self.zero = y0 == 0 and 0 <= a < math.inf and 0 <= b < math.inf \
+            and 0 <= c < math.inf
+
+    def amplitude(self):
+        return np.zeros(self.t.size) if self.zero else np.full(self.t.size, np.nan)
+
+    def jacobian(self):
+        if not self.zero:
+            return np.full((4, self.t.size), np.nan)
+        jacobian = np.zeros((4, self.t.size))
+        if self.c == 0:  # y stays 0 unless c = 0, where y = y0*exp(-b*t) to first order
+            with np.errstate(over="ignore"):
+                jacobian[0] = np.exp(-self.b * self.t)
+        return jacobian
+
+
+def _one_set(t, y0, a, b, c):
+    law = _law_or_none(y0, a, b, c)
+    return _NoLaw(t, y0, a, b, c) if law is None else _Terms(law, t)
+
+
+class _Evaluated:
+    """The law evaluated at every time, its Jacobian computed only on demand: what
+    :func:`amplitude_terms` returns. Each parameter set is evaluated once at its times in
+    increasing order (:class:`_Terms`), and the results are put back in place."""
+
+    def __init__(self, t, y0, a, b, c):
+        self._sets = []
+        if type(y0) is float and type(a) is float and type(b) is float and type(c) is float \
+                and type(t) is np.ndarray and t.ndim == 1 and t.dtype == np.float64:
+            self.shape = t.shape  # a fit's case, without the general checks below
+            self._add(None, t, (y0, a, b, c))
+            return
+        self.shape = _shape_of(t, y0, a, b, c)
+        parameters = [np.asarray(v, dtype=float) for v in (y0, a, b, c)]
+        if all(v.size == 1 for v in parameters):
+            times = np.ravel(np.broadcast_to(np.asarray(t, dtype=float), self.shape))
+            self._add(None, times, [float(v.item()) for v in parameters])
+            return
+        times, *parameters = _as_flat_arrays(t, *parameters)
+        # Each distinct parameter set once: its regime is chosen once for all its times.
+        distinct, which = np.unique(np.column_stack(parameters), axis=0, return_inverse=True)
+        which = which.ravel()
+        for i, row in enumerate(distinct):
+            index = np.flatnonzero(which == i)
+            self._add(index, times[index], [float(v) for v in row])
+
+    def _add(self, index, times, parameters):
+        """One parameter set at ``times`` (positions ``index`` of the output, None for all)."""
+        if times.size > 1 and np.count_nonzero(times[1:] >= times[:-1]) < times.size - 1:
+            order = np.argsort(times, kind="stable")
+            times = times[order]
+            index = order if index is None else index[order]
+        self._sets.append((index, _one_set(times, *parameters)))
+
+    def _gather(self, rows, method):
+        if self._sets[0][0] is None:
+            return getattr(self._sets[0][1], method)()
+        out = np.empty((rows, math.prod(self.shape))) if rows else np.empty(
+            math.prod(self.shape))
+        for index, terms in self._sets:
+            out[..., index] = getattr(terms, method)()
+        return out
+
+    def amplitude(self):
+        """y(t), shaped as the broadcast inputs; a float for scalar inputs."""
+        y = self._gather(0, "amplitude").reshape(self.shape)
+        return y[()] if y.ndim == 0 else y
+
+    def jacobian(self):
+        """dy/d(y0, a, b, c), shape (..., 4)."""
+        return self._gather(4, "jacobian").T.reshape(self.shape + (4,))
 
 
 def stop_time(y0, a, b, c):
@@ -195,316 +436,19 @@ def stop_time(y0, a, b, c):
         The stop time in s; ``inf`` when ``c == 0`` (the amplitude only tends to zero),
         0 when ``y0 == 0`` and ``c > 0``.
     """
-    if _is_scalar(y0) and _is_scalar(a) and _is_scalar(b) and _is_scalar(c):
-        # The scalar code _SortedTerms uses, so that amplitude() is 0 from this time on.
-        law = _one_law(float(y0), float(a), float(b), float(c))
-        if law is not None:
-            return np.float64(_one_law_constants(*law[1:])[2] / law[0])
     shape = _shape_of(y0, a, b, c)
-    y0, a, b, c = _as_flat_arrays(y0, a, b, c)
-    law = _Normalized(y0, a, b, c)
-    with np.errstate(over="ignore"):
-        result = law.per_rate(_normalized_stop_time(law.a, law.b, law.c))
-    result = np.where((y0 == 0) & (c > 0), 0.0, result).reshape(shape)
+    result = np.array([_one_stop_time(*values) for values in zip(*_as_flat_arrays(
+        y0, a, b, c))]).reshape(shape)
     return result[()] if result.ndim == 0 else result
 
 
-def _at(values, mask):
-    """values[mask] for per-time arrays; a size-1 parameter array as it is (it broadcasts)."""
-    return values if values.size == 1 else values[mask]
-
-
-class _LawTerms:
-    """The normalized amplitude and the pieces its Jacobian reuses."""
-
-    def __init__(self, t, y0, a, b, c):
-        self.shape = _shape_of(t, y0, a, b, c)
-        if math.prod(_shape_of(y0, a, b, c)) == 1:
-            # One parameter set (a fit's case): keep its constants as size-1 arrays that
-            # broadcast against t, so each is computed once, not once per time.
-            t = np.ravel(np.broadcast_to(np.asarray(t, dtype=float), self.shape))
-            y0, a, b, c = (np.asarray(v, dtype=float).reshape(1) for v in (y0, a, b, c))
-        else:
-            t, y0, a, b, c = _as_flat_arrays(t, y0, a, b, c)
-        self.t_in, self.y0_in, self.c_in = t, y0, c
-        law = self.law = _Normalized(y0, a, b, c)
-        a, b, c = law.a, law.b, law.c
-        theta = law.time(t)
-        theta_stop = _normalized_stop_time(a, b, c)
-        with np.errstate(over="ignore"):
-            t_stop = law.per_rate(theta_stop)  # exactly what stop_time() returns
-        self.running = (t < t_stop) & (y0 > 0)
-        theta = np.minimum(theta, theta_stop)
-        # After the stop y = 0; evaluate there at theta = 0, far from tan's pole.
-        theta = np.where(self.running, theta, 0.0)
-        sigma = _discriminant_quarter(a, b, c)
-        s = np.sqrt(np.abs(sigma))
-        z = s * theta
-        self.exponential = (sigma > 0) & (z >= _EXPONENTIAL_FORM_LIMIT)
-        tau = np.empty_like(theta)
-        dtau_dsigma = np.empty_like(theta)
-        near = ~self.exponential
-        phi, dphi = _phi(_at(sigma, near) * theta[near] ** 2)
-        tau[near] = theta[near] * phi
-        dtau_dsigma[near] = theta[near] ** 3 * dphi
-        # Far in the exponential regime theta**3 * Phi'(u) = -(tanh z - z*sech(z)**2)/(2 s**3).
-        far = self.exponential
-        e = np.exp(-2.0 * z[far])
-        tanh = (1.0 - e) / (1.0 + e)
-        s_far = _at(s, far)
-        tau[far] = tanh / s_far
-        dtau_dsigma[far] = -(tanh - z[far] * 4.0 * e / (1.0 + e) ** 2) / (2.0 * s_far**3)
-
-        k = c + 0.5 * b
-        m = a + 0.5 * b
-        eta = (1.0 - tau * k) / (1.0 + tau * m)
-        if np.any(far):
-            sf, af, bf, cf, kf, mf = (_at(v, far) for v in (s, a, b, c, k, m))
-            h = 0.5 * bf + sf
-            numerator = e * (sf + kf) - cf * (1.0 + af / h)
-            denominator = (sf + mf) - e * af * (1.0 + cf / h)
-            eta[far] = numerator / denominator
-        self.eta = np.where(self.running, np.maximum(eta, 0.0), 0.0)
-        self.theta, self.tau, self.dtau_dsigma, self.k, self.m = theta, tau, dtau_dsigma, k, m
-
-    def amplitude(self):
-        y = (self.y0_in * self.eta).reshape(self.shape)
-        return y[()] if y.ndim == 0 else y
-
-    def jacobian(self):
-        law, eta, tau, k, m = self.law, self.eta, self.tau, self.k, self.m
-        a, b, c = law.a, law.b, law.c
-        denominator = 1.0 + tau * m
-        shared = self.dtau_dsigma * (k + eta * m)  # d tau/d sigma times (K + eta*M), <= 0
-        d_a = (-eta * tau + c * shared) / denominator
-        d_c = (-tau + a * shared) / denominator
-        d_b = (-0.5 * tau * (1.0 + eta) - 0.5 * b * shared) / denominator
-        rate_eta = c + b * eta + a * eta**2
-        with np.errstate(divide="ignore", invalid="ignore"):
-            d_b_scaling = -(rate_eta * self.theta + c * d_c + a * d_a) / b
-        d_b = np.where(self.exponential, d_b_scaling, d_b)
-        # P(y)/P(y0); after normalizing a + b + c >= 1 unless there is no damping at all.
-        total = a + b + c
-        d_y0 = np.where(total > 0, rate_eta / np.where(total > 0, total, 1.0), 1.0)
-        y0 = law.y0
-        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-            d_a = np.where(d_a == 0, 0.0, d_a * law.per_rate(y0) * y0)
-            d_b = np.where(d_b == 0, 0.0, law.per_rate(d_b * y0))
-            d_c = np.where(d_c == 0, 0.0, law.per_rate(d_c))
-        # y0 = 0: y stays 0 unless c = 0, where y = y0*exp(-b*t) to first order in y0.
-        zero_start = self.y0_in == 0
-        d_y0 = np.where(zero_start,
-                        np.where(self.c_in == 0, np.exp(-law.b * law.time(self.t_in)), 0.0),
-                        d_y0)
-        jacobian = np.stack([d_y0, d_a, d_b, d_c], axis=-1)
-        jacobian = np.where(self.running[:, None] | (zero_start[:, None] & (np.arange(4) == 0)),
-                            jacobian, 0.0)
-        return jacobian.reshape(self.shape + (4,))
-
-
-# Smallest |u| at which each term k >= 1 of the Phi' series exceeds 2**-56 of the first,
-# so a slice whose largest |u| is below _PHI_DERIVATIVE_NEEDS[k-1] needs no term past k-1.
-_PHI_DERIVATIVE_NEEDS = tuple(
-    float((2.0**-56 * abs(_PHI_DERIVATIVE_SERIES[0]) / abs(d)) ** (1.0 / k))
-    for k, d in enumerate(_PHI_DERIVATIVE_SERIES[1:], start=1))
-_EXPONENTS = np.arange(float(_PHI_DERIVATIVE_SERIES.size))
-# Powers of u for the series by one np.power call (about 10 ns per element) up to this many
-# elements, beyond it row by row (about 1 us per call).
-_POWER_CALL_LIMIT = 600
-
-
-def _is_scalar(value):
-    """True for a real number or a 0-d array (np.ndim is slow for the fit's inner loop)."""
-    return isinstance(value, (float, int, np.floating, np.integer)) or (
-        isinstance(value, np.ndarray) and value.ndim == 0)
-
-
-def _one_law(y0, a, b, c):
-    """(rate, a, b, c) of _Normalized for one parameter set, as floats; None where the
-    array code is needed (y0 <= 0, a rate beyond the float range, or invalid input)."""
-    if not (y0 > 0 and a >= 0 and b >= 0 and c >= 0):
-        return None
-    rate_c = c / y0
-    rate_a = a * y0  # Python floats give inf, not an exception, on overflow
-    rate = max(rate_c, b, rate_a)
-    if not rate < math.inf:
-        return None
-    if rate == 0:
-        rate = 1.0
-    return rate, rate_a / rate, b / rate, rate_c / rate
-
-
-def _one_law_constants(a, b, c):
-    """sigma, s and the normalized stop time of one normalized law (scalar
-    _discriminant_quarter and _normalized_stop_time)."""
-    g = math.sqrt(a) * math.sqrt(c)
-    sigma = (0.5 * b - g) * (0.5 * b + g)
-    s = math.sqrt(abs(sigma))
-    if c <= 0:
-        return sigma, s, math.inf
-    k = c + 0.5 * b
-    tau_stop = 1.0 / k
-    if sigma > 0:
-        # 1 - z written without cancellation: b/2 - s = a*c/(b/2 + s).
-        one_minus_z = (c + a * c / (0.5 * b + s)) / k
-        if one_minus_z == 0:
-            return sigma, s, math.inf  # a Coulomb term too faint to stop within floats
-        result = 0.5 * math.log1p(2.0 * (s * tau_stop) / one_minus_z) / s
-    elif sigma < 0:
-        result = math.atan(s * tau_stop) / s
-    else:
-        result = tau_stop
-    return sigma, s, result if result == result else math.inf
-
-
-class _SortedTerms:
-    """_LawTerms for one parameter set at sorted times >= 0: a fit's case, made fast.
-
-    Normalized time grows with t, so each branch of tau (series, direct, exponential
-    form, stopped) covers one contiguous slice of the times: every branch works on a view,
-    without masks, and the constants are computed once as Python floats. The formulas are
-    those of _LawTerms, with tau = tanh(s*theta)/s or tan(s*theta)/s in place of
-    theta*Phi(u) (the same function), so that the series is needed for Phi' only. On the
-    fit's 10 to 1000 points each numpy call costs more than its arithmetic: the code is
-    written to make few of them.
-    """
-
-    def __init__(self, t, shape, y0, law):
-        rate, a, b, c = law
-        sigma, s, theta_stop = _one_law_constants(a, b, c)
-        n = t.size
-        if float(t[-1]) * rate <= _MAX_NORMALIZED_TIME:
-            theta = t * rate
-        else:
-            with np.errstate(over="ignore"):
-                theta = np.minimum(t * rate, _MAX_NORMALIZED_TIME)
-        # Running while t < t_stop, with t_stop exactly what stop_time() returns.
-        n_run = n if theta_stop == math.inf else int(t.searchsorted(theta_stop / rate))
-        theta = theta[:n_run]
-        if theta_stop < math.inf:
-            theta = np.minimum(theta, theta_stop)
-        # Branch boundaries: |u| = |sigma|*theta**2 < _SERIES_LIMIT, s*theta >= 1.
-        if sigma == 0:
-            n_series = n_exp = n_run
-        else:
-            n_series = int(theta.searchsorted(math.sqrt(_SERIES_LIMIT / abs(sigma))))
-            n_exp = (int(theta.searchsorted(_EXPONENTIAL_FORM_LIMIT / s)) if sigma > 0
-                     else n_run)
-        k = c + 0.5 * b
-        m = a + 0.5 * b
-
-        dtau = np.empty(n_run)  # d tau / d sigma = theta**3 * Phi'(u)
-        if sigma == 0:  # Phi(0) = 1, Phi'(0) = -1/3
-            tau = theta
-            np.multiply(theta * theta, theta * _PHI_DERIVATIVE_SERIES[0], out=dtau)
-        else:
-            z = s * theta
-            trig = np.tanh(z) if sigma > 0 else np.tan(z)  # before tan's pole: see stop_time
-            tau = trig / s
-        if sigma != 0 and n_series:  # the series, with only the terms that matter
-            theta_s = theta[:n_series]
-            square = theta_s * theta_s
-            u = sigma * square
-            degree = bisect.bisect_right(_PHI_DERIVATIVE_NEEDS, abs(float(u[-1])))
-            if n_series * degree <= _POWER_CALL_LIMIT:
-                powers = u ** _EXPONENTS[:degree + 1, None]
-            else:
-                powers = np.empty((degree + 1, n_series))
-                powers[0] = 1.0
-                for j in range(1, degree + 1):
-                    np.multiply(powers[j - 1], u, out=powers[j])
-            np.multiply(square * theta_s, _PHI_DERIVATIVE_SERIES[:degree + 1] @ powers,
-                        out=dtau[:n_series])
-        if n_exp > n_series:  # the closed form of Phi' where |u| >= _SERIES_LIMIT
-            zd = z[n_series:n_exp]
-            td = trig[n_series:n_exp]
-            numerator = zd * (1.0 - td * td) - td if sigma > 0 else td - zd * (1.0 + td * td)
-            np.multiply(numerator, 0.5 / (s * s * s), out=dtau[n_series:n_exp])
-        denominator = 1.0 + tau * m
-        eta = np.zeros(n)
-        running = eta[:n_run]
-        np.divide(1.0 - tau[:n_exp] * k, denominator[:n_exp], out=running[:n_exp])
-        if n_run > n_exp:  # s*theta >= 1: written with E = exp(-2z), so tails keep digits
-            zf = z[n_exp:]
-            e = np.exp(-2.0 * zf)
-            one_plus_e = 1.0 + e
-            sech2 = 4.0 * e / (one_plus_e * one_plus_e)
-            np.multiply(trig[n_exp:] - zf * sech2, -0.5 / (s * s * s), out=dtau[n_exp:])
-            h = 0.5 * b + s
-            np.divide(e * (s + k) - c * (1.0 + a / h), (s + m) - e * (a * (1.0 + c / h)),
-                      out=running[n_exp:])
-        np.maximum(running, 0.0, out=running)
-        self.shape, self.y0, self.rate, self.a, self.b, self.c = shape, y0, rate, a, b, c
-        self.n_run, self.n_exp, self.theta, self.k, self.m = n_run, n_exp, theta, k, m
-        self.tau, self.dtau, self.denominator, self.eta = tau, dtau, denominator, eta
-
-    def amplitude(self):
-        y = (self.y0 * self.eta).reshape(self.shape)
-        return y[()] if y.ndim == 0 else y
-
-    def jacobian(self):
-        a, b, c, k, m = self.a, self.b, self.c, self.k, self.m
-        n_run, n_exp = self.n_run, self.n_exp
-        eta = self.eta[:n_run]
-        # The formulas of _LawTerms.jacobian as one matrix product: rows of the basis
-        # B = [S, T, eta*T, 1, eta, eta**2] with T = tau/(1 + tau*M) and S = (d tau/d sigma)
-        # * (K + eta*M)/(1 + tau*M) (<= 0) combine into dy/d(y0, a, b, c) in normalized units.
-        basis = np.empty((6, n_run))
-        np.divide(self.tau, self.denominator, out=basis[1])
-        np.multiply(eta, m, out=basis[0])
-        basis[0] += k
-        basis[0] *= self.dtau
-        basis[0] /= self.denominator
-        np.multiply(eta, basis[1], out=basis[2])
-        basis[3] = 1.0
-        basis[4] = eta
-        np.multiply(eta, eta, out=basis[5])
-        # dy/dy0 = P(y)/P(y0); after normalizing a + b + c >= 1 unless there is no damping.
-        total = a + b + c
-        y0_row = (0.0, 0.0, 0.0, c / total, b / total, a / total) if total > 0 else (
-            0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
-        combination = np.array([y0_row,
-                                (c, 0.0, -1.0, 0.0, 0.0, 0.0),
-                                (-0.5 * b, -0.5, -0.5, 0.0, 0.0, 0.0),
-                                (a, -1.0, 0.0, 0.0, 0.0, 0.0)])
-        jacobian = np.empty((4, self.eta.size))
-        np.matmul(combination, basis, out=jacobian[:, :n_run])
-        jacobian[:, n_run:] = 0.0
-        if n_run > n_exp:
-            # Where s*theta >= 1: the time-scaling identity a*dy/da + b*dy/db + c*dy/dc
-            # = -t*P(y) gives dy/db without the cancellation of the formula above.
-            d_y0, d_a, d_b, d_c = jacobian[:, n_exp:n_run]
-            rate_eta = c + b * basis[4, n_exp:] + a * basis[5, n_exp:]
-            np.divide(rate_eta * self.theta[n_exp:] + c * d_c + a * d_a, -b, out=d_b)
-        # Back from normalized units, in the order of _LawTerms.jacobian.
-        y0, rate = self.y0, self.rate
-        y0_per_rate = y0 / rate
-        factors = (y0_per_rate * y0, y0_per_rate, 1.0 / rate)
-        if max(factors) <= 1e150 and float(np.abs(jacobian).max()) <= 1e150:  # no overflow
-            jacobian[1:] *= np.array(factors)[:, None]
-        else:
-            d_a, d_b, d_c = jacobian[1:]
-            with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-                # An infinite factor must not turn an exact zero into NaN.
-                np.multiply(d_a, y0_per_rate, out=d_a, where=d_a != 0)
-                d_a *= y0
-                d_b *= y0
-                d_b /= rate
-                d_c /= rate
-        return jacobian.T.reshape(self.shape + (4,))
-
-
-def _law_terms(t, y0, a, b, c):
-    """The law's terms: _SortedTerms where it applies (one parameter set, y0 > 0, sorted
-    times >= 0), _LawTerms otherwise (parameter arrays, unsorted times, extreme rates)."""
-    if _is_scalar(y0) and _is_scalar(a) and _is_scalar(b) and _is_scalar(c):
-        times = np.asarray(t, dtype=float)
-        flat = times.ravel()
-        if flat.size and flat[0] >= 0 and (flat.size == 1 or (flat[1:] >= flat[:-1]).all()):
-            law = _one_law(float(y0), float(a), float(b), float(c))
-            if law is not None:
-                return _SortedTerms(flat, times.shape, float(y0), law)
-    return _LawTerms(t, y0, a, b, c)
+def _one_stop_time(y0, a, b, c):
+    law = _law_or_none(float(y0), float(a), float(b), float(c))
+    if law is not None:
+        return law.t_stop
+    if y0 == 0 and 0 <= a < math.inf and 0 <= b < math.inf and 0 <= c < math.inf:
+        return 0.0 if c > 0 else math.inf
+    return math.nan
 
 
 def amplitude(t, y0, a, b, c):
@@ -530,7 +474,7 @@ def amplitude(t, y0, a, b, c):
     overflow or NaN for finite non-negative inputs. Relative accuracy is a few ulp except
     close to the stop time, where y -> 0 and the absolute error stays about eps*y0.
     """
-    return _law_terms(t, y0, a, b, c).amplitude()
+    return _Evaluated(t, y0, a, b, c).amplitude()
 
 
 def amplitude_jacobian(t, y0, a, b, c):
@@ -550,23 +494,33 @@ def amplitude_jacobian(t, y0, a, b, c):
     cancellation. dy/db comes from the tau form where s*t < 1 and otherwise from the
     time-scaling identity a*dy/da + b*dy/db + c*dy/dc = -t*P(y).
     """
-    return _law_terms(t, y0, a, b, c).jacobian()
+    return _Evaluated(t, y0, a, b, c).jacobian()
 
 
 def amplitude_and_jacobian(t, y0, a, b, c):
     """``(amplitude(...), amplitude_jacobian(...))`` from one evaluation of the law."""
-    terms = _law_terms(t, y0, a, b, c)
+    terms = _Evaluated(t, y0, a, b, c)
     return terms.amplitude(), terms.jacobian()
+
+
+def amplitude_rows(t, y0, a, b, c):
+    """The law of one parameter set at sorted times, for a fit's inner loop.
+
+    ``t`` must be a 1-D float array in increasing order and ``y0, a, b, c`` floats; nothing
+    is checked or reshaped. Returns an object whose ``amplitude()`` is y(t), shape (n,),
+    and whose ``jacobian()`` is dy/d(y0, a, b, c) as rows, shape (4, n), computed on demand.
+    """
+    return _one_set(t, y0, a, b, c)
 
 
 def amplitude_terms(t, y0, a, b, c):
     """The law evaluated once, its Jacobian computed only on demand.
 
-    Returns an object whose ``amplitude()`` and ``jacobian()`` give what :func:`amplitude`
-    and :func:`amplitude_jacobian` return. A least-squares solver needs the Jacobian only
-    at the steps it accepts, and the residuals at every trial step.
+    Returns an object whose ``amplitude()`` and ``jacobian()`` give what
+    :func:`amplitude` and :func:`amplitude_jacobian` return. A least-squares solver needs
+    the Jacobian only at the steps it accepts, and the residuals at every trial step.
     """
-    return _law_terms(t, y0, a, b, c)
+    return _Evaluated(t, y0, a, b, c)
 
 
 def decay_rate(y, a, b, c):

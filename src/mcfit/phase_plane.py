@@ -17,8 +17,10 @@ turning point from which the swing may not reach the other side of 0 (:func:`_st
 last swings are integrated in x and xdot (:func:`_with_final_swing`).
 
 Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md section 1.
-Every function takes arrays of parameter sets (shape (m,)) and integrates them together,
-so that a finite-difference Jacobian costs one pass. numpy only.
+The half-cycles are solved all at once, by one Newton iteration over all their
+collocation equations (:func:`_all_half_cycles`), started from the averaged law; the
+functions take arrays of parameter sets (shape (m,)). :func:`phase_plane_differences`
+gives a forward-difference Jacobian from one solution. numpy only.
 """
 
 from __future__ import annotations
@@ -27,14 +29,22 @@ import math
 
 import numpy as np
 
-__all__ = ["NODES", "FINE", "phase_plane_motion"]
+from mcfit import decay
+
+__all__ = ["NODES", "FINE", "phase_plane_differences", "phase_plane_motion"]
 
 # Collocation points and interpolation points per half-cycle: x is within 1e-9 of the
-# amplitude for Q >= 2 (tests/test_phase_plane.py, against the accurate integrator).
+# amplitude for Q >= 2 (tests/test_waveform.py, against the accurate integrator).
 NODES = 16
 FINE = 64
-_NEWTON_ITERATIONS = 8
+_NEWTON_ITERATIONS = 8  # per half-cycle, one after the other (the fallback)
+_GLOBAL_ITERATIONS = 60  # all at once; a stop guessed too early moves a half-cycle a step
 _HALF_PI = 0.5 * math.pi
+# Above this damping ratio (Q below about 2.6) a half-cycle's changes in
+# phase_plane_differences are taken from every set's own interpolant.
+_STRONG = 0.3
+# Most values in one array of the all-at-once solution (2**21 floats: 16 MiB).
+_MAX_GRID = 1 << 21
 
 
 def _chebyshev_matrices(nodes, fine):
@@ -87,12 +97,186 @@ def phase_plane_motion(t, y0, theta0, omega, a, b, c):
     y0, theta0, omega, a, b, c = (np.array(v, dtype=float)[:, None] for v in
                                   np.broadcast_arrays(*(np.atleast_1d(np.asarray(
                                       v, dtype=float)) for v in (y0, theta0, omega, a, b, c))))
+    if not (np.any(a) or np.any(b) or np.any(c)):
+        return y0 * np.cos(omega * t + theta0)  # no friction: the undamped oscillation
     # A trial parameter set of a solver may bring a swing to a standstill inside a
     # half-cycle (D -> 0): its values are then huge but finite, and the solver steps back.
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         *nodes, final = _nodes(float(t[-1]), y0, theta0, omega, a, b, c)
         x = _with_final_swing(t, _sampled(t, *nodes), final, (a, b, c), omega[:, 0])
     return np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300)
+
+
+def phase_plane_differences(t, parameters, steps, memory=None):
+    """x(t) at one parameter set, and how it changes when the set moves by each of
+    ``steps``: what a forward-difference Jacobian needs, at a fraction of its cost.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        As for :func:`phase_plane_motion`.
+    parameters : ndarray, shape (6,)
+        y0, theta0, omega, a, b, c as for :func:`phase_plane_motion`.
+    steps : ndarray, shape (p, 6)
+        Small changes of ``parameters`` (relative size about 1e-7).
+    memory : dict, optional
+        Kept between calls with nearby parameters (a solver's steps): the last solution
+        starts the next one, or is the solution when ``parameters`` are the same.
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+        x at ``parameters`` (U), as :func:`phase_plane_motion` gives it.
+    changes : ndarray, shape (p, n)
+        x at ``parameters + steps[i]`` less ``x`` (U), to first order in the steps.
+
+    Notes
+    -----
+    The moved sets take one Newton step from the solution at ``parameters`` with its
+    Jacobian (the chord method: the error is of the order of the squared step). Their
+    change at fixed time is found at the nodes (the change of phase or amplitude less its
+    rate times the node's shift in time) and interpolated linearly between them, which
+    is within about 1e-4/Q of the change. The last swings of a decay that stops are
+    integrated for every set; where a moved set counts its half-cycles from another
+    multiple of pi, every set is solved on its own and the changes are differences of
+    :func:`phase_plane_motion`.
+    """
+    t = np.asarray(t, dtype=float)
+    sets = np.asarray(parameters, dtype=float)[None, :] + np.vstack(
+        [np.zeros((1, 6)), np.asarray(steps, dtype=float)])
+    y0, theta0, omega, a, b, c = (sets[:, i:i + 1] for i in range(6))
+    base = np.floor(theta0 / math.pi) * math.pi
+    first = None
+    t_end = float(t[-1])
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        if (np.any(a) or np.any(b) or np.any(c)) and np.all(base == base[0]):
+            first = _first_solution(t_end, y0, theta0 - base, omega, a, b, c, memory)
+        if first is None:
+            x = phase_plane_motion(t, *sets.T)
+            return x[0], x[1:] - x[0]
+        solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
+        *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
+        j, s, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
+        shift = nodes[0][1:] - nodes[0][:1]
+        at_nodes = np.concatenate([nodes[k][1:] - nodes[k][:1] - nodes[k + 2][:1] * shift
+                                   for k in (1, 2)])  # phase, then amplitude, at fixed time
+        # Past the last node s = 1 (or the last two nodes are the same state at rest).
+        at_samples = at_nodes[:, j] + s * np.diff(at_nodes, axis=1)[:, j]
+        cos = np.cos(phase)
+        x = amplitude * cos
+        changes = (at_samples[shift.shape[0]:] * cos
+                   - at_samples[:shift.shape[0]] * (amplitude * np.sin(phase)))
+        # Every set on its own in strongly damped half-cycles (the phase speed varies
+        # much, the linear interpolation less accurate) and the last swings of a stop.
+        strong = _damping_ratio(solved[0][0], a[0], b[0], c[0], omega[0]) > _STRONG
+        exact = strong[np.minimum(j // FINE, strong.size - 1)] | (t >= np.min(final[:, 0]))
+        if np.any(exact):
+            moved = _with_final_swing(t[exact], _sampled(t[exact], *nodes), final, (a, b, c),
+                                      omega[:, 0])
+            x[exact], changes[:, exact] = moved[0], moved[1:] - moved[0]
+    return (np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300),
+            np.nan_to_num(changes, nan=0.0, posinf=1e300, neginf=-1e300))
+
+
+def _damping_ratio(amplitudes, a, b, c, omega):
+    """The largest (pi/2)*g(A)/(omega*A) of each half-cycle (shape (count, NODES)): the
+    phase speed is omega*(1 -+ it) at the turning points."""
+    safe = np.maximum(amplitudes, 1e-100)
+    return np.max(_HALF_PI * (c + safe * (b + a * safe)) / (omega * safe), axis=1)
+
+
+def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
+    """The half-cycles of set 0 (:func:`_all_half_cycles`), started from the last
+    solution in ``memory`` where it has as many, or None where they are not found."""
+    count = float(np.ceil((omega[0, 0] * t_end + phi[0, 0]) / math.pi)) + 2
+    if not _fits_at_once(count, y0.shape[0]):
+        return None
+    count = int(count)
+    memory = {} if memory is None else memory
+    key = np.array([t_end] + [v[0, 0] for v in (y0, phi, omega, a, b, c)])
+    last = memory.get("solution")
+    if last is not None and np.array_equal(memory["key"], key):
+        return last
+    guesses = ([last[0]] if last is not None and last[0].shape[1] == count else []) + [None]
+    for guess in guesses:
+        try:
+            first = _all_half_cycles(count, t_end, y0[:1], phi[:1], omega[:1], a[:1], b[:1],
+                                     c[:1], guess)
+        except np.linalg.LinAlgError:
+            first = None
+        if first is not None and not isinstance(first, str):
+            memory.update(key=key, solution=first)
+            return first
+    return None
+
+
+def _chord(first, y0, phi0, omega, a, b, c):
+    """The half-cycles of every set from one Newton step away from ``first`` (the
+    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian."""
+    amplitudes, _, _, held, finished, _, _, free = first
+    count = held.shape[1]
+    start_phi, length, phases = _grid(count, phi0)
+    omega3 = omega[..., None]
+    held = np.broadcast_to(held, (y0.shape[0], count))
+    _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free)
+    jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
+    free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
+    slope, _, _ = _rates(amplitudes, phases, omega3, *free)
+    residual = _residual(amplitudes, y0, length, slope)
+    both = np.linalg.solve(jacobian, np.concatenate(
+        [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
+    own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
+    guess = amplitudes + _steps(own, carried)
+    _, time_rate, _ = _rates(guess, phases, omega3, *free)
+    return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
+            _begins(length, time_rate, held), time_rate, free)
+
+
+def _fits_at_once(count, sets):
+    """Whether ``count`` half-cycles of ``sets`` parameter sets are solved at once within
+    _MAX_GRID values an array; more (a long record, or a solver's trial frequency far
+    off) go one half-cycle after the other, in bounded memory."""
+    return bool(np.isfinite(count) and count * sets * FINE <= _MAX_GRID)
+
+
+def _grid(count, phi0):
+    """Start phase, length and collocation phases of ``count`` half-cycles of each set,
+    the first from ``phi0`` (shape (m, 1)): arrays of shape (m, count, 1 or NODES)."""
+    start_phi = np.where(np.arange(count) == 0, phi0, 0.0)[..., None]
+    length = math.pi - start_phi
+    return start_phi, length, start_phi + length * _S
+
+
+def _residual(amplitudes, y0, length, slope):
+    """The collocation equations A = A_start + L*S*f(A) of every half-cycle, A_start the
+    end of the one before (y0 for the first)."""
+    m, count = slope.shape[:2]
+    entering = np.concatenate([np.broadcast_to(y0, (m, 1)),
+                               np.broadcast_to(amplitudes[:, :-1, -1], (m, count - 1))], axis=1)
+    entering = entering[..., None]
+    return amplitudes - entering - length * (slope @ _INTEGRATE.T)
+
+
+def _steps(own, carried):
+    """Newton steps of all half-cycles: each one's ``own`` step plus its response
+    ``carried`` (to a unit change of its start) times the step of the end before it.
+
+    The ends obey e_k = o_k + r_k*e_(k-1), e_(-1) = 0: with P_k = r_0*...*r_k,
+    e_k = P_k * sum_(j<=k) o_j/P_j, unless P leaves the floating-point range (a loop then).
+    """
+    ratio = carried[..., -1]
+    with np.errstate(all="ignore"):
+        product = np.cumprod(np.broadcast_to(ratio, own.shape[:2]), axis=1)
+        ends = product * np.cumsum(own[..., -1] / product, axis=1)
+    if not (np.all(np.isfinite(ends)) and np.all(np.abs(product) > 1e-200)
+            and np.all(np.abs(product) < 1e200)):
+        end = np.zeros(own.shape[0])
+        ends = np.empty(own.shape[:2])
+        for k in range(own.shape[1]):
+            end = own[:, k, -1] + ratio[:, k] * end
+            ends[:, k] = end
+    before = np.concatenate([np.zeros((own.shape[0], 1)), ends[:, :-1]], axis=1)
+    return own + carried * before[..., None]
 
 
 def _half_cycle(amplitude, now, phi, omega, a, b, c):
@@ -124,9 +308,126 @@ def _stuck(amplitude, omega, a, b, c):
 
 def _nodes(t_end, amplitude, theta0, omega, a, b, c):
     """Times, total phases, amplitudes and their time derivatives on FINE points of each
-    half-cycle, until every set has passed ``t_end`` or is held; arrays of shape
-    (m, nodes). A half-cycle boundary is a node twice, once with the rates of either side
-    (the friction changes sign there)."""
+    half-cycle, until every set has passed ``t_end`` or is held, arrays of shape
+    (m, nodes), and each set's stop (start, amplitude, sign; inf where it swings on). A
+    half-cycle boundary is a node twice, once with the rates of either side (the friction
+    changes sign there). All half-cycles are solved at once (:func:`_all_half_cycles`);
+    where that fails, one after the other (:func:`_nodes_one_by_one`)."""
+    base = np.floor(theta0 / math.pi) * math.pi
+    phi = theta0 - base
+    # Friction slows the phase on average, so a half-cycle lasts at least about pi/omega.
+    count = float(np.max(np.ceil((omega * t_end + phi) / math.pi))) + 2
+    solved = None
+    for _ in range(3):
+        if not _fits_at_once(count, amplitude.shape[0]):
+            break
+        count = int(count)
+        try:
+            solved = _all_half_cycles(count, t_end, amplitude, phi, omega, a, b, c)
+        except np.linalg.LinAlgError:
+            solved = None
+        if not isinstance(solved, str):
+            break
+        count *= 2
+    if solved is None or isinstance(solved, str):
+        return _nodes_one_by_one(t_end, amplitude, theta0, omega, a, b, c)
+    return _fine_nodes(solved, base, phi, omega, a, b, c)
+
+
+def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
+    """The collocation amplitudes of ``count`` successive half-cycles of every set, by
+    Newton's method on all of them at once (multiple shooting).
+
+    Half-cycle k starts where k - 1 ends, so its Newton step is its own step plus the
+    response to the step of that end amplitude: J_k d_k = -G_k + 1*e_(k-1), solved for
+    both right-hand sides, leaves a scalar recursion for the ends. The start is the
+    averaged law at each half-cycle's start (within O(1/Q) of the solution), or ``guess``
+    (amplitudes, shape (m, count, NODES)). Returns (amplitudes, start phases, lengths,
+    held, finished, start times, time rates, coefficients as held sets see them), "short"
+    when the half-cycles end before ``t_end``, None without convergence."""
+    start_phi, length, phases = _grid(count, phi0)
+    index = np.arange(count)
+    if guess is None:
+        elapsed = np.where(index == 0, 0.0, index * math.pi - phi0) / omega
+        guess = np.repeat(decay.amplitude(elapsed, y0, a, b, c)[..., None], _S.size, axis=2)
+    omega3 = omega[..., None]
+    identity, ones = np.eye(_S.size), np.ones(guess.shape)
+    held_before = None
+    for _ in range(_GLOBAL_ITERATIONS):
+        held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
+        free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
+        slope, time_rate, d_slope = _rates(guess, phases, omega3, *free)
+        residual = _residual(guess, y0, length, slope)
+        jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
+        both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
+        step = _steps(both[..., 0], both[..., 1])
+        guess = guess + step
+        begins = _begins(length, time_rate, held)
+        relevant = ~held & (begins < t_end)
+        size = np.max(np.abs(guess[relevant]), initial=0.0)
+        change = np.max(np.abs(step[relevant]), initial=0.0)
+        if not np.isfinite(change + size):
+            return None
+        if change <= 1e-14 * size and held_before is not None and np.array_equal(held, held_before):
+            break
+        held_before = held
+    else:
+        return None
+    held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
+    free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
+    _, time_rate, _ = _rates(guess, phases, omega3, *free)
+    begins = _begins(length, time_rate, held)
+    finished = held | (begins >= t_end)
+    if not np.all(np.any(finished, axis=1) | (begins[:, -1] + length[:, -1, 0] * (
+            time_rate[:, -1] @ _INTEGRATE[-1]) >= t_end)):
+        return "short"
+    return guess, start_phi, length, held, finished, begins, time_rate, free
+
+
+def _held(starts, start_phi, omega, a, b, c):
+    """Whether each half-cycle (m, count) starts at or after a turning point where the set
+    is held (:func:`_stuck`)."""
+    stuck = (start_phi == 0.0) & _stuck(starts, omega, a, b, c)
+    return np.cumsum(stuck, axis=1) > 0
+
+
+def _begins(length, time_rate, held):
+    """Start time of each half-cycle (held ones last no time)."""
+    durations = np.where(held, 0.0, length[..., 0] * (time_rate @ _INTEGRATE[-1]))
+    return np.cumsum(durations, axis=1) - durations
+
+
+def _fine_nodes(solved, base, phi, omega, a, b, c):
+    """The solved half-cycles on FINE points each; from the first finished half-cycle on
+    (held, or starting after the record) the state of its start, at rest."""
+    amplitudes, start_phi, length, held, finished, begins, time_rate, free = solved
+    m, count = held.shape
+    fine_a = amplitudes @ _EVALUATE.T
+    fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T
+    fine_phi = start_phi + length * _FINE_S
+    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free)
+    total = base[..., None] + np.arange(count)[:, None] * math.pi + fine_phi
+    first = np.where(np.any(finished, axis=1), np.argmax(finished, axis=1), count)
+    rows = np.arange(m)
+    last = np.minimum(first, count - 1)
+    stop_t = begins[rows, last]
+    stop_phase = base[:, 0] + last * math.pi + start_phi[rows, last, 0]
+    stop_a = amplitudes[rows, last, 0]
+    rest = (np.arange(count) >= first[:, None])[..., None]
+    nodes = (np.where(rest, stop_t[:, None, None], fine_t),
+             np.where(rest, stop_phase[:, None, None], total),
+             np.where(rest, stop_a[:, None, None], fine_a),
+             np.where(rest, 0.0, 1.0 / fine_rate), np.where(rest, 0.0, slope / fine_rate))
+    final = np.full((m, 3), np.inf)
+    stops = np.any(held, axis=1)
+    h = np.argmax(held, axis=1)
+    final[stops] = np.column_stack([begins[rows, h], amplitudes[rows, h, 0],
+                                    np.cos(base[:, 0] + h * math.pi)])[stops]
+    return tuple(v.reshape(m, -1) for v in nodes) + (final,)
+
+
+def _nodes_one_by_one(t_end, amplitude, theta0, omega, a, b, c):
+    """As :func:`_nodes`, one half-cycle after the other."""
     base = np.floor(theta0 / math.pi) * math.pi
     phi = theta0 - base
     now = np.zeros_like(amplitude)
@@ -179,20 +480,25 @@ def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     and the amplitude in time; past the last node the state stays where it was held."""
     x = np.empty((times.shape[0], t.size))
     for i in range(times.shape[0]):
-        node_t = times[i]
-        j = np.clip(np.searchsorted(node_t, t, side="right") - 1, 0, node_t.size - 2)
-        span = node_t[j + 1] - node_t[j]
-        width = np.where(span > 0, span, 1.0)
-        s = np.where(span > 0, np.clip((t - node_t[j]) / width, 0.0, 1.0), 0.0)
-        phase = _hermite(s, width, phases[i, j], phases[i, j + 1], phase_rates[i, j],
-                         phase_rates[i, j + 1])
-        amplitude = _hermite(s, width, amplitudes[i, j], amplitudes[i, j + 1],
-                             amplitude_rates[i, j], amplitude_rates[i, j + 1])
-        after = t >= node_t[-1]
-        phase = np.where(after, phases[i, -1], phase)
-        amplitude = np.where(after, amplitudes[i, -1], amplitude)
+        _, _, amplitude, phase = _interpolated(t, times[i], phases[i], amplitudes[i],
+                                               phase_rates[i], amplitude_rates[i])
         x[i] = amplitude * np.cos(phase)
     return x
+
+
+def _interpolated(t, times, phases, amplitudes, phase_rates, amplitude_rates):
+    """Interval index and position in it of each time, and the amplitude and total phase
+    there, from the nodes of one set."""
+    j = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
+    span = times[j + 1] - times[j]
+    width = np.where(span > 0, span, 1.0)
+    s = np.where(span > 0, np.clip((t - times[j]) / width, 0.0, 1.0), 0.0)
+    phase = _hermite(s, width, phases[j], phases[j + 1], phase_rates[j], phase_rates[j + 1])
+    amplitude = _hermite(s, width, amplitudes[j], amplitudes[j + 1], amplitude_rates[j],
+                         amplitude_rates[j + 1])
+    after = t >= times[-1]
+    return (j, s, np.where(after, amplitudes[-1], amplitude),
+            np.where(after, phases[-1], phase))
 
 
 def _hermite(s, width, p0, p1, m0, m1):

@@ -70,26 +70,14 @@ class Record:
         return (f"Record(source={self.source!r}{run}, kind={self.kind!r}, "
                 f"samples={self.t.size}, {span})")
 
-    def to_dict(self):
-        """Plain-Python summary (no arrays), ready for JSON."""
-        finite = np.isfinite(self.t)
-        return {
-            "source": self.source, "run": self.run, "kind": self.kind, "domain": self.domain,
-            "time_column": self.time_column, "signal_column": self.signal_column,
-            "time_unit": self.time_unit, "signal_unit": self.signal_unit,
-            "columns": list(self.columns), "samples": int(self.t.size),
-            "t_start": float(self.t[finite][0]) if finite.any() else None,
-            "t_end": float(self.t[finite][-1]) if finite.any() else None,
-            "notes": list(self.notes),
-        }
-
 
 def detect_kind(t, x):
     """'turning-points' for a table of extrema or amplitudes, else 'waveform'."""
     finite = np.isfinite(t) & np.isfinite(x)
-    t, x = t[finite], x[finite]
-    if x.size < 3 or x.size > 5000:
+    count = np.count_nonzero(finite)
+    if count < 3 or count > 5000:  # decided before copying a long record
         return "waveform"
+    t, x = t[finite], x[finite]
     order = np.argsort(t, kind="stable")
     v = x[order]
     if np.all(v >= 0) or np.all(v <= 0):

@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 
 from mcfit.errors import InputError, UsageError
-from mcfit.options import DOMAINS, KINDS
+from mcfit.options import check_read_options
 from mcfit.record import Record, detect_kind
 
 __all__ = ["Record", "read_record", "read_records", "TEXT_EXTENSIONS", "EXCEL_EXTENSIONS"]
@@ -70,8 +70,7 @@ _UNIT = re.compile(r"^(.*?)\s*[\(\[]\s*([^\)\]]*)\s*[\)\]]\s*$")
 
 
 def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None,
-                input=None, domain=None, run=None,  # noqa: A002 - mirrors the input option
-                angle_from=None):
+                kind=None, domain=None, run=None, angle_from=None):
     """Read a decay record from a file, ``"-"`` (stdin) or an open stream.
 
     Parameters
@@ -87,7 +86,7 @@ def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None
         Excel sheet name or 1-based index (default: the first sheet that holds numbers).
     rate : float, optional
         Sample rate in Hz: ``t = index / rate`` (for files without a usable time column).
-    input : {"waveform", "turning-points"}, optional
+    kind : {"waveform", "turning-points"}, optional
         Override the detected kind of record.
     domain : {"time", "cycle"}, optional
         Override the detected meaning of the time column (seconds or cycle number n).
@@ -110,7 +109,7 @@ def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None
         Contradictory or invalid options.
     """
     records = read_records(source, time_col=time_col, signal_col=signal_col, sheet=sheet,
-                           rate=rate, input=input, domain=domain, run=run,
+                           rate=rate, kind=kind, domain=domain, run=run,
                            angle_from=angle_from)
     if len(records) > 1:
         runs = ", ".join(r.run for r in records)
@@ -121,35 +120,29 @@ def read_record(source, *, time_col=None, signal_col=None, sheet=None, rate=None
 
 
 def read_records(source, *, time_col=None, signal_col=None, sheet=None, rate=None,
-                 input=None, domain=None, run=None,  # noqa: A002
-                 angle_from=None):
+                 kind=None, domain=None, run=None, angle_from=None):
     """Every run of a file as a :class:`Record`, in file order; see :func:`read_record`.
 
     Runs side by side are columns labelled ``Run #N`` (columns without a label, such as a
     shared time, belong to every run) or repeated groups of columns that each start with a
     time column. A file without them is one record with ``run`` None.
     """
-    rate = _checked_options(input, domain, rate, time_col, angle_from, signal_col)
+    check_read_options(kind=kind, domain=domain, rate=rate, time_col=time_col,
+                       signal_col=signal_col, angle_from=angle_from)
+    rate = _checked_rate(rate)
     table = _open_table(source, sheet)
     # The column heuristics (spans, slopes, steps) overflow to inf or NaN for values near
     # the float64 limit, which then fail their tests as they should; the turning-point
     # search rejects such values with a message.
     with np.errstate(over="ignore", invalid="ignore"):
         runs = _chosen_runs(table, run, (time_col, signal_col) + tuple(angle_from or ()))
-        return [_build_record(table, time_col, signal_col, rate, input, domain,
+        return [_build_record(table, time_col, signal_col, rate, kind, domain,
                               run=run_of_file, angle_from=angle_from)
                 for run_of_file in runs]
 
 
-def _checked_options(input, domain, rate, time_col, angle_from, signal_col):  # noqa: A002
-    """The rate as a float, after refusing contradictory or invalid options."""
-    if input is not None and input not in KINDS:
-        raise UsageError(f"input must be 'waveform' or 'turning-points', not {input!r}.")
-    if domain is not None and domain not in DOMAINS:
-        raise UsageError(f"domain must be 'time' or 'cycle', not {domain!r}.")
-    if angle_from is not None and (len(angle_from) != 2 or signal_col is not None):
-        raise UsageError("angle_from takes two columns, the bob's x and y, and replaces the "
-                         "signal column.")
+def _checked_rate(rate):
+    """The sample rate as a float (or None), refusing what is not a positive number."""
     if rate is None:
         return None
     try:
@@ -158,8 +151,6 @@ def _checked_options(input, domain, rate, time_col, angle_from, signal_col):  # 
         raise UsageError(f"rate must be a number of samples per second, not {rate!r}.")
     if not np.isfinite(rate) or rate <= 0:
         raise UsageError(f"rate must be a positive number of samples per second, not {rate}.")
-    if time_col is not None:
-        raise UsageError("give either a time column or a sample rate, not both.")
     return rate
 
 
@@ -1899,7 +1890,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         detected_kind = detect_kind(t, x)
     chosen_kind = kind or detected_kind
     if kind is None and detected_kind == "turning-points":
-        notes.append("read as a table of turning points (override with `input=waveform`)")
+        notes.append("read as a table of turning points (override with `kind=waveform`)")
 
     if chosen_kind == "turning-points":
         finite = np.isfinite(t) & np.isfinite(x)

@@ -12,8 +12,9 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 import warnings
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import lmfit
 import numpy as np
@@ -56,6 +57,7 @@ class Candidate:
     evaluations: int
     correlation: dict = field(default_factory=dict)
     internal: np.ndarray = field(default=None, repr=False, compare=False)
+    # The chi-square gradient at ``internal`` where the ranking computed it (see _gradient).
     gradient: np.ndarray = field(default=None, repr=False, compare=False)
 
     @property
@@ -65,17 +67,12 @@ class Candidate:
     def score(self, criterion: str) -> float:
         return getattr(self, criterion)
 
-    def to_dict(self) -> dict:
-        out = asdict(self)
-        del out["internal"], out["gradient"]
-        return out
-
 
 @dataclass(frozen=True)
 class ReportedFit:
     """lmfit's fit of the reported model, in internal units: the values of y0, a, b, c,
     the free parameters' covariance (None if unknown), chi-square with the record's
-    weights."""
+    weights, and the :class:`Problem` fitted (its law at the values is at hand)."""
 
     values: np.ndarray
     free: tuple
@@ -83,6 +80,7 @@ class ReportedFit:
     chi_square: float
     success: bool
     evaluations: int
+    problem: Problem = field(default=None, repr=False, compare=False)
 
 
 def information_criteria(chi_square, n_points, n_params):
@@ -109,13 +107,15 @@ def fit_candidates(scaled: ScaledRecord, models) -> dict:
     return fitted
 
 
-def make_candidate(scaled, model, values, chi_square, success, evaluations, gradient=None):
-    """A :class:`Candidate` from its internal values (y0, a, b, c) and chi-square."""
+def make_candidate(scaled, model, values, chi_square, success, evaluations, gradient=None,
+                   problem=None):
+    """A :class:`Candidate` from its internal values (y0, a, b, c) and chi-square
+    (``problem``: the model's :class:`Problem`, whose law at ``values`` may be at hand)."""
     n_params = len(terms_of(model)) + 1
     aicc, bic = information_criteria(chi_square, scaled.t.size, n_params)
     return Candidate(model, n_params, chi_square, aicc, bic, success,
                      scaled.to_physical(values), evaluations,
-                     _correlations(scaled, terms_of(model), values), values, gradient)
+                     _correlations(scaled, terms_of(model), values, problem), values, gradient)
 
 
 def _constant_amplitude(scaled):
@@ -123,17 +123,15 @@ def _constant_amplitude(scaled):
     w2 = scaled.weights**2
     y0 = max(float(np.sum(w2 * scaled.y) / np.sum(w2)), 0.0)
     chi_square = float(np.sum(w2 * (scaled.y - y0) ** 2))
-    gradient = Problem(scaled, "").gradient([y0])
-    return make_candidate(scaled, NONE, np.array([y0, 0.0, 0.0, 0.0]), chi_square, True, 1,
-                          gradient)
+    return make_candidate(scaled, NONE, np.array([y0, 0.0, 0.0, 0.0]), chi_square, True, 1)
 
 
-def _correlations(scaled, terms, values):
+def _correlations(scaled, terms, values, problem=None):
     """Correlations of the estimates of two or more terms at ``values`` (internal units),
     from the pseudo-inverse of J'J; 0 where a variance is 0."""
     if len(terms) < 2:
         return {}
-    problem = Problem(scaled, terms)
+    problem = problem or Problem(scaled, terms)
     covariance = problem.covariance(values[problem.columns])
     pairs = {}
     for first, second in itertools.combinations(terms, 2):
@@ -163,21 +161,30 @@ def _rank(scaled, terms, smaller):
         chi_square = problem.chi_square(solution)
         if best_smaller is None or chi_square <= best_smaller.chi_square:
             return make_candidate(scaled, terms, problem.values(solution), chi_square, True,
-                                  evaluations, problem.gradient(solution))
+                                  evaluations, problem=problem)
     elif left and best_smaller is not None and lowest >= best_smaller.chi_square:
         at_bound = [column for column in problem.columns[1:]
                     if best_smaller.internal[column] == 0]
-        if all(best_smaller.gradient[column] >= 0 for column in at_bound):
+        gradient = _gradient(scaled, best_smaller)
+        if all(gradient[column] >= 0 for column in at_bound):
             return make_candidate(scaled, terms, best_smaller.internal.copy(),
                                   best_smaller.chi_square, best_smaller.success, evaluations,
-                                  best_smaller.gradient)
+                                  gradient)
     values, chi_square, success, more = _bounded(problem, start)
     evaluations += more
     if best_smaller is not None and best_smaller.chi_square < chi_square:
         values, chi_square, success, more = _bounded(problem, best_smaller.internal)
         evaluations += more
     return make_candidate(scaled, terms, values, chi_square, success, evaluations,
-                      problem.gradient(values[problem.columns]))
+                          problem=problem)
+
+
+def _gradient(scaled, candidate):
+    """The chi-square gradient in (y0, a, b, c) at a candidate's values (Problem.gradient;
+    it depends on the values only, not on which terms are free): computed where needed."""
+    if candidate.gradient is not None:
+        return candidate.gradient
+    return Problem(scaled, "abc").gradient(candidate.internal)
 
 
 def _bounded(problem, start):
@@ -208,16 +215,16 @@ def _levenberg_marquardt(problem, start):
 
     def residual(x):
         seen["evaluations"] += 1
-        if min(x) < 0:
+        if min(x.tolist()) < 0:
             raise _LeftTheBounds
         r = problem.residual(x)
         seen["lowest"] = min(seen["lowest"], float(r @ r) * problem.chi_square_scale)
         return r
 
     def jacobian(x):
-        if min(x) < 0:
+        if min(x.tolist()) < 0:
             raise _LeftTheBounds
-        return problem.jacobian(x)
+        return problem.jacobian_rows(x)
 
     try:
         with warnings.catch_warnings():
@@ -225,8 +232,8 @@ def _levenberg_marquardt(problem, start):
             warnings.filterwarnings("ignore", category=RuntimeWarning,
                                     module=r"scipy\.optimize\._minpack_py")
             x, _, _, _, status = optimize.leastsq(
-                residual, start[problem.columns], Dfun=jacobian, full_output=True,
-                maxfev=_RANKING_EVALUATIONS, **_RANKING_TOLERANCES)
+                residual, start[problem.columns], Dfun=jacobian, col_deriv=True,
+                full_output=True, maxfev=_RANKING_EVALUATIONS, **_RANKING_TOLERANCES)
     except _LeftTheBounds:
         return None, seen["lowest"], seen["evaluations"], True
     converged = status in (1, 2, 3, 4) and min(x) > 0
@@ -238,9 +245,7 @@ def fit_reported(scaled: ScaledRecord, candidate: Candidate) -> ReportedFit:
     Gauss-Newton (so lmfit converges at once)."""
     problem = Problem(scaled, candidate.terms)
     start, refining = _gauss_newton_refined(problem, candidate.internal)
-    params = lmfit.Parameters()
-    for name, value in zip(problem.free, start[problem.columns]):
-        params.add(name, value=value, min=0.0)
+    params = _parameters(problem.free, start[problem.columns])
 
     def residual(p):
         return problem.residual([p[k].value for k in problem.free])
@@ -253,7 +258,27 @@ def fit_reported(scaled: ScaledRecord, candidate: Candidate) -> ReportedFit:
     chi_square = float(result.chisqr) * problem.chi_square_scale
     return ReportedFit(problem.values(free_values), problem.free,
                        _covariance(problem, free_values, result, chi_square), chi_square,
-                       bool(result.success), candidate.evaluations + refining + int(result.nfev))
+                       bool(result.success), candidate.evaluations + refining + int(result.nfev),
+                       problem)
+
+
+# lmfit Parameters by tuple of free names, one dictionary per thread (Dask workers may run
+# fits in threads): building them costs more than lmfit's whole fit from a converged start.
+_PARAMETERS = threading.local()
+
+
+def _parameters(free, values):
+    """lmfit Parameters named ``free``, each >= 0, set to ``values`` (reused, see above;
+    lmfit fits a copy and leaves them as they are)."""
+    cache = _PARAMETERS.__dict__.setdefault("by_free", {})
+    params = cache.get(free)
+    if params is None:
+        params = cache[free] = lmfit.Parameters()
+        for name in free:
+            params.add(name, value=1.0, min=0.0)
+    for name, value in zip(free, values):
+        params[name].value = float(value)
+    return params
 
 
 def lmfit_least_squares(residual, jacobian, params):

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from mcfit import decay
 from mcfit.errors import FitError
 from mcfit.fit import uncertainty
-from mcfit.fit.candidates import Candidate, fit_candidates, fit_reported, make_candidate
+from mcfit.fit.candidates import fit_candidates, fit_reported, make_candidate
 from mcfit.fit.models import CRITERIA, MODELS, NONE, POWER, REGIME_NAMES, TERMS, \
     parse_model, regime_list, terms_of
 from mcfit.fit.power import PowerLawFit, fit_power_law
@@ -30,7 +30,7 @@ _SMALLEST = 1e-30
 
 @dataclass(frozen=True)
 class DecayFit:
-    """Result of :func:`fit_decay`: plain data that serialises to JSON via ``to_dict()``.
+    """Result of :func:`fit_decay`: plain data (:meth:`mcfit.Analysis.summary` is its JSON).
 
     Coefficients are in the units of ``t`` (seconds in the time domain, cycles in the cycle
     domain) and of ``y``; ``t0`` is the time of the first turning point used, where the
@@ -84,22 +84,6 @@ class DecayFit:
     @property
     def forced(self) -> bool:
         return self.selection.forced
-
-    def to_dict(self) -> dict:
-        """JSON-ready summary (arrays as lists)."""
-        out = {}
-        for key, value in self.__dict__.items():
-            if isinstance(value, np.ndarray):
-                value = value.tolist()
-            elif isinstance(value, Selection):
-                value = asdict(value)
-            elif isinstance(value, tuple) and value and isinstance(value[0], Candidate):
-                value = [c.to_dict() for c in value]
-            elif isinstance(value, dict):
-                value = {k: (v.tolist() if isinstance(v, np.ndarray) else v)
-                         for k, v in value.items()}
-            out[key] = value
-        return out
 
     def amplitude(self, t):
         """The fitted amplitude at times ``t`` (same units as the input)."""
@@ -257,7 +241,7 @@ def _reported(record, candidates, selection):
     reported = fit_reported(scaled, candidates[selection.model])
     candidates = {**candidates, selection.model: make_candidate(
         scaled, selection.model, reported.values, reported.chi_square, reported.success,
-        reported.evaluations)}
+        reported.evaluations, problem=reported.problem)}
     dof = t.size - len(reported.free)
     reduced = reported.chi_square / dof if dof > 0 else math.nan
     errors = uncertainty.parameter_errors(scaled, reported.free, reported.covariance)

@@ -9,8 +9,7 @@ from __future__ import annotations
 
 import itertools
 
-from mcfit.errors import FitError
-from mcfit.options import CRITERIA
+from mcfit.options import CRITERIA, parse_model
 
 __all__ = ["TERMS", "NONE", "POWER", "MODELS", "REGIME_NAMES", "CRITERIA", "terms_of",
            "parse_model", "regime_list"]
@@ -27,23 +26,6 @@ REGIME_NAMES = {"a": "fluid", "b": "hysteretic", "c": "coulomb"}
 def terms_of(model: str) -> str:
     """The letters of the terms a model keeps ("" for ``"none"``)."""
     return "" if model == NONE else model
-
-
-def parse_model(text: str) -> str:
-    """A model name from what a person wrote: letters from "abc" in any order and case
-    ("BA" -> "ab"), ``"none"`` or ``"power"``.
-
-    Raises :class:`mcfit.errors.FitError` (with ``option="model"``) for anything else,
-    e.g. ``"bacon"`` or a repeated letter.
-    """
-    word = str(text).strip().lower()
-    if word in (NONE, POWER):
-        return word
-    if word and set(word) <= set(TERMS) and len(set(word)) == len(word):
-        return "".join(k for k in TERMS if k in word)
-    raise FitError(f"model {text!r} is not a set of damping terms: use letters from 'abc' "
-                   "(a fluid, b hysteretic, c Coulomb; e.g. 'ab'), 'none' or 'power'",
-                   option="model")
 
 
 def regime_list(terms) -> str:

@@ -108,7 +108,9 @@ class Problem:
         self.chi_square_scale = scaled.weight_scale**2
         self.free = ("y0",) + tuple(terms)
         self.columns = [_COLUMN[k] for k in self.free]
-        self._key = self._law = self._jacobian = None
+        # The law and its Jacobian at the last two parameter vectors: a solver's answer is
+        # often the point before its last trial step, and the callers ask for it again.
+        self._cache = {}
 
     def values(self, free_values):
         """(y0, a, b, c) with the absent terms 0."""
@@ -116,28 +118,43 @@ class Problem:
         values[self.columns] = free_values
         return values
 
+    def _entry(self, free_values):
+        free = (free_values.tolist() if isinstance(free_values, np.ndarray)
+                else [float(v) for v in free_values])
+        if len(free) == 4:  # y0, a, b, c in order
+            key = tuple(free)
+        else:
+            values = [0.0, 0.0, 0.0, 0.0]
+            for column, value in zip(self.columns, free):
+                values[column] = value
+            key = tuple(values)
+        entry = self._cache.get(key)
+        if entry is None:
+            if len(self._cache) >= 2:
+                del self._cache[next(iter(self._cache))]
+            entry = self._cache[key] = [decay.amplitude_rows(self.t, *key), None]
+        return entry
+
     def law(self, free_values):
-        values = [0.0, 0.0, 0.0, 0.0]
-        for column, value in zip(self.columns, free_values):
-            values[column] = float(value)
-        key = tuple(values)
-        if key != self._key:
-            self._key, self._law = key, decay.amplitude_terms(self.t, *key)
-            self._jacobian = None
-        return self._law
+        return self._entry(free_values)[0]
 
     def law_jacobian(self, free_values):
-        """dy/d(y0, a, b, c), unweighted (computed once per parameter vector)."""
-        law = self.law(free_values)
-        if self._jacobian is None:
-            self._jacobian = law.jacobian()
-        return self._jacobian
+        """dy/d(y0, a, b, c) as rows, shape (4, n), unweighted (computed once per parameter
+        vector)."""
+        entry = self._entry(free_values)
+        if entry[1] is None:
+            entry[1] = entry[0].jacobian()
+        return entry[1]
 
     def residual(self, free_values):
         return (self.law(free_values).amplitude() - self.y) * self.solver_weights
 
+    def jacobian_rows(self, free_values):
+        """The Jacobian of the residuals, transposed: shape (free parameters, n)."""
+        return self.law_jacobian(free_values)[self.columns] * self.solver_weights
+
     def jacobian(self, free_values):
-        return self.law_jacobian(free_values)[:, self.columns] * self.solver_weights[:, None]
+        return self.jacobian_rows(free_values).T
 
     def chi_square(self, free_values):
         return float(np.sum(((self.law(free_values).amplitude() - self.y) * self.weights) ** 2))
@@ -145,9 +162,9 @@ class Problem:
     def covariance(self, free_values):
         """Unscaled covariance (J^T J)^-1 of the free parameters, record weights (times
         the reduced chi-square for the parameters' covariance)."""
-        jacobian = self.law_jacobian(free_values)[:, self.columns] * self.weights[:, None]
+        rows = self.law_jacobian(free_values)[self.columns] * self.weights
         try:
-            return np.linalg.pinv(jacobian.T @ jacobian)
+            return np.linalg.pinv(rows @ rows.T)
         except np.linalg.LinAlgError:
             return None
 
@@ -155,7 +172,7 @@ class Problem:
         """Cosines between the residuals and the Jacobian column of each of y0, a, b, c
         (free or not): the chi-square gradient, normalized as MINPACK's gtol test does."""
         w = self.solver_weights
-        jacobian = self.law_jacobian(free_values) * w[:, None]
+        rows = self.law_jacobian(free_values) * w
         residual = (self.law(free_values).amplitude() - self.y) * w
-        norms = np.sqrt(np.sum(jacobian**2, axis=0)) * math.sqrt(float(residual @ residual))
-        return (jacobian.T @ residual) / np.where(norms > 0, norms, 1.0)
+        norms = np.sqrt(np.sum(rows**2, axis=1)) * math.sqrt(float(residual @ residual))
+        return (rows @ residual) / np.where(norms > 0, norms, 1.0)

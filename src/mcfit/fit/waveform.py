@@ -24,42 +24,69 @@ from mcfit.fit import uncertainty
 from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
 from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
 from mcfit.fit.selection import LRT_ALPHA, select_model
-from mcfit.phase_plane import phase_plane_motion
+from mcfit.phase_plane import phase_plane_differences
 
 __all__ = ["fit_waveform"]
 # Nuisance parameters of the waveform besides y0: phase, frequency, offset, drift.
 _NUISANCE = ("theta0", "omega", "e0", "e1")
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
+# A candidate far from contention is fitted only until chi-square falls by less than this
+# share in a step (within about 1e-5 of converged, in a third of the steps).
+_SCREENING = {**_TOLERANCES, "ftol": 1e-6}
+# Far from contention: AICc above the best by more than this. The selection's ties are
+# within 2 and its tests reject a term for a chi-square drop of about 10.
+_CONTENTION = 1000.0
+# The turning-point fit's AICc within this of its best: likely in contention (fitted to
+# full tolerance at once; the others are screened first).
+_LIKELY = 20.0
 
 
 class _Waveform:
-    """The samples to fit and the model x(t) for a batch of parameter vectors
-    (y0, theta0, omega, e0, e1, then the model's terms)."""
+    """The samples to fit, the residuals of the model x(t) and their Jacobian at a
+    parameter vector (y0, theta0, omega, e0, e1, then the model's terms)."""
 
     def __init__(self, t, x, t0, terms, noise):
         self.t, self.x, self.t0, self.terms, self.noise = t, x, t0, terms, noise
         self.names = ("y0",) + _NUISANCE + tuple(terms)
+        self.memory = {}  # the last solution of the motion starts the next
 
-    def batch(self, parameters):
-        p = np.atleast_2d(parameters)
-        coefficients = {k: np.zeros(p.shape[0]) for k in TERMS}
+    def _motion(self, p):
+        """(y0, theta0, omega, a, b, c) of each row of ``p``."""
+        motion = np.zeros((p.shape[0], 6))
+        motion[:, :3] = p[:, :3]
         for i, k in enumerate(self.terms):
-            coefficients[k] = p[:, 5 + i]
-        motion = phase_plane_motion(self.t - self.t0, p[:, 0], p[:, 1], p[:, 2],
-                                    coefficients["a"], coefficients["b"], coefficients["c"])
-        return motion + p[:, 3:4] + p[:, 4:5] * (self.t - self.t0)
+            motion[:, 3 + TERMS.index(k)] = p[:, 5 + i]
+        return motion
 
     def residual(self, parameters):
-        return (self.batch(parameters)[0] - self.x) / self.noise
+        """Residuals in noise units; the Jacobian at the same point comes with them (the
+        solver asks for it next at every step it takes) and is kept for :meth:`jacobian`."""
+        p = np.array(parameters, dtype=float)
+        x, self._kept = self._with_jacobian(p)
+        return (x - self.x) / self.noise
 
     def jacobian(self, parameters):
-        """Forward differences, all columns from one batched integration."""
         p = np.asarray(parameters, dtype=float)
-        scale = np.maximum(np.abs(p), self.typical)
-        steps = 1e-7 * scale
-        trial = np.vstack([p, p + np.diag(steps)])
-        x = self.batch(trial)
-        return ((x[1:] - x[0]) / (steps[:, None] * self.noise)).T
+        kept = getattr(self, "_kept", None)
+        if kept is not None and np.array_equal(kept[0], p):
+            return kept[1]
+        return self._with_jacobian(p)[1][1]
+
+    def _with_jacobian(self, p):
+        """x at ``p``, and (p, the Jacobian of the residuals) by forward differences of the
+        motion from one solution (:func:`mcfit.phase_plane.phase_plane_differences`);
+        offset and drift enter linearly."""
+        tau = self.t - self.t0
+        steps = 1e-7 * np.maximum(np.abs(p), self.typical)
+        moved = [0, 1, 2] + list(range(5, p.size))
+        motion, changes = phase_plane_differences(tau, self._motion(p[None])[0],
+                                                  self._motion(np.diag(steps)[moved]),
+                                                  self.memory)
+        jacobian = np.empty((self.t.size, p.size))
+        jacobian[:, moved] = changes.T / steps[moved]
+        jacobian[:, 3] = 1.0
+        jacobian[:, 4] = tau
+        return motion + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
 
 
 def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
@@ -86,11 +113,20 @@ def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
     noise = sample_noise(xw)
     starts = {c.model: c.values for c in start_fit.candidates}
     models = MODELS if forced is None else tuple(m for m in starts)
-    candidates = {}
+    candidates, solutions = {}, {}
+    waveforms = {model: _Waveform(tw, xw, t0, terms_of(model), noise) for model in models}
+    likely = _likely(start_fit, models)
     for model in models:
         values = starts.get(model, starts.get(start_fit.model))
         start = np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
-        candidates[model] = _ranked(_Waveform(tw, xw, t0, terms_of(model), noise), start)
+        candidates[model], solutions[model] = _ranked(
+            waveforms[model], start, _TOLERANCES if model in likely else _SCREENING)
+    best = min(c.aicc for c in candidates.values())
+    for model in models:
+        if model not in likely and (candidates[model].aicc - best <= _CONTENTION
+                                    or model == forced):
+            candidates[model], solutions[model] = _ranked(
+                waveforms[model], solutions[model].x, _TOLERANCES, solutions[model].nfev)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
     return _reported(selection, candidates, tw, xw, t0, noise, start_fit)
 
@@ -149,15 +185,43 @@ def _bounds(start, terms):
     return lower, upper
 
 
-def _ranked(waveform, start):
-    waveform.typical = np.maximum(np.abs(start), 1e-3 * abs(start[0]))
-    waveform.typical[1] = 1.0
-    lower, upper = _bounds(start, waveform.terms)
+def _typical(start, terms):
+    """The size below which a parameter's difference step stops shrinking: its start
+    value, or a thousandth of its unit's natural scale (the amplitude U for y0, offset,
+    drift and c; 1 for the phase and b; 1/U for a). A scale in the wrong unit (1e9 for b
+    of a record in picometres) made the steps stop the motion at once."""
+    y0 = abs(start[0])
+    natural = np.array([y0, 1.0, 0.0, y0, y0] + [{"a": 1.0 / y0, "b": 1.0, "c": y0}[k]
+                                                for k in terms])
+    typical = np.maximum(np.abs(start), 1e-3 * natural)
+    typical[1] = 1.0
+    return typical
+
+
+def _likely(start_fit, models):
+    """The models the turning-point fit puts in contention (its AICc within ``_LIKELY``
+    of its best): fitted to full tolerance at once. Only the cost depends on this."""
+    scores = {c.model: c.aicc for c in start_fit.candidates
+              if c.model in models and math.isfinite(c.aicc)}
+    best = min(scores.values(), default=math.inf)
+    return {m for m, score in scores.items() if score - best <= _LIKELY} | (
+        set(models) - set(scores))
+
+
+def _ranked(waveform, start, tolerances, evaluations=0):
+    """The candidate fitted from ``start`` (a screening fit's end, which has already
+    taken ``evaluations``, keeps the bounds and steps of the first start)."""
+    if not evaluations:
+        waveform.typical = _typical(start, waveform.terms)
+        waveform.bounds = _bounds(start, waveform.terms)
+    lower, upper = waveform.bounds
     result = optimize.least_squares(waveform.residual, np.clip(start, lower, upper),
                                     jac=waveform.jacobian, bounds=(lower, upper),
-                                    method="trf", x_scale="jac", max_nfev=200, **_TOLERANCES)
+                                    method="trf", x_scale="jac",
+                                    max_nfev=max(200 - evaluations, 10), **tolerances)
+    result.nfev += evaluations
     return _candidate(waveform, result.x, float(2 * result.cost), bool(result.success),
-                      int(result.nfev), result.jac)
+                      int(result.nfev), result.jac), result
 
 
 def _candidate(waveform, p, chi_square, success, evaluations, jacobian):
@@ -184,8 +248,9 @@ def _reported(selection, candidates, tw, xw, t0, noise, start_fit):
     terms = selection.terms
     waveform = _Waveform(tw, xw, t0, terms, noise)
     start = candidates[selection.model].internal
-    waveform.typical = np.maximum(np.abs(start), 1e-3 * abs(start[0]))
-    waveform.typical[1] = 1.0
+    waveform.typical = _typical(start, terms)
+    dof = tw.size - start.size
+    # lmfit reports the fit (it restarts at the ranking fit's solution and stops there).
     params = lmfit.Parameters()
     lower, upper = _bounds(start, terms)
     for name, value, low, high in zip(waveform.names, start, lower, upper):
@@ -193,10 +258,10 @@ def _reported(selection, candidates, tw, xw, t0, noise, start_fit):
     result = lmfit_least_squares(lambda p: waveform.residual(_vector(p, waveform.names)),
                                  lambda p: waveform.jacobian(_vector(p, waveform.names)),
                                  params)
-    p = _vector(result.params, waveform.names)
+    p, success = _vector(result.params, waveform.names), bool(result.success)
     chi_square = float(result.chisqr)
-    dof = tw.size - p.size
     covariance = getattr(result, "covar", None)
+    residual = waveform.residual(p)
     if covariance is None or not np.all(np.isfinite(covariance)):
         jacobian = waveform.jacobian(p)
         covariance = np.linalg.pinv(jacobian.T @ jacobian) * chi_square / max(dof, 1)
@@ -225,14 +290,13 @@ def _reported(selection, candidates, tw, xw, t0, noise, start_fit):
         parts = decay.quality_parts(y_fit, omega, values["a"], values["b"], values["c"])
         q_parts = {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}
         q_summary = uncertainty.summarise_q(q, q_stderr)
-    residual = waveform.residual(p)
     errors_view = uncertainty.ParameterErrors(stderr, correlation, law_covariance)
     warnings = (selection.warnings() + tie_warning(selection, y_fit)
-                + diagnose(terms, values, errors_view, residual, bool(result.success),
+                + diagnose(terms, values, errors_view, residual, success,
                            autocorrelation=False))
     return replace(
-        fit, status="ok" if result.success else "error",
-        message=None if result.success else "the waveform fit did not converge",
+        fit, status="ok" if success else "error",
+        message=None if success else "the waveform fit did not converge",
         model=selection.model, t0=t0, omega=omega, values=values, stderr=stderr,
         correlation=correlation, regimes={REGIME_NAMES[k]: k in terms for k in TERMS},
         lrt_p_values=selection.p_values, candidates=tuple(candidates.values()),

@@ -47,6 +47,7 @@ import numpy as np
 from mcfit.hum import find_steady_line, subtract_steady_line
 from mcfit.turning.checks import _check_count, _check_decay, _checked_samples, _closing_notes
 from mcfit.turning.checks import _with_scatter
+from mcfit.turning.common import _median
 from mcfit.turning.crests import _phase_weights, _projected_crests, _with_excluded
 from mcfit.turning.equilibrium import _equilibrium_line
 from mcfit.turning.floor import _tail_notes, _vibration_floor
@@ -57,7 +58,7 @@ from mcfit.turning.result import MIN_TURNING_POINTS, TurningPoints, _frozen
 from mcfit.turning.spectrum import (_SPECTRUM_SAMPLES, _checked_period, _find_gaps, _gap_note,
                                     _spectral_noise, _spectrum)
 from mcfit.turning.tables import turning_points_from_table
-from mcfit.turning.windows import _measure
+from mcfit.turning.windows import Samples, _measure
 
 # Re-exported for the modules and tests that import them from mcfit.turning.
 from mcfit.turning.checks import _check_range  # noqa: F401, E402
@@ -115,7 +116,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     """
     t, tf, xf = _checked_samples(t, x, source)
     steps = np.diff(tf)
-    dt = float(np.median(steps))
+    dt = float(_median(steps))
     gaps = _find_gaps(tf, steps, dt)
     spectral_period, noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
     if gaps:
@@ -127,9 +128,10 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     line = _equilibrium_line(tf, xf, period, noise)
     centres, signs = _coarse_extrema(tf, xf, *line, period, samples_per_cycle, noise, source)
     held = _held_until(tf, xf, period, noise)  # crests before it count nowhere
-    refined = _refine(tf, xf, centres, signs, line, period, noise, held)
+    samples = Samples.of(tf, xf, steps)
+    refined = _refine(samples, centres, signs, line, period, noise, held)
     line = refined.line
-    m = _measure(tf, xf, refined, noise)
+    m = _measure(samples, refined, noise)
 
     # Where the free decay starts, and where it ends in a floor.
     release_time, free, release_cause = _release(
@@ -143,7 +145,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
 
     # The crest phase, continued, and the amplitudes projected onto it.
     limit = tf[-1] if floor_start is None else m.centres[floor_start] - 0.5 * period / 2
-    columns, phase_lost = _projected_crests(tf, xf, m, period, line, slice(free, end), limit)
+    columns, phase_lost = _projected_crests(samples, m, period, line, slice(free, end), limit)
     crests, crest_signs, y, sigma_y, log_step, reasons = _with_excluded(
         m, free, floor_start, columns)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mcfit.errors import RecordError
-from mcfit.turning.common import SAMPLES_PER_CYCLE, _robust_sigma, _running_median
+from mcfit.turning.common import SAMPLES_PER_CYCLE, _median, _robust_sigma, _running_median
 from mcfit.turning.result import MIN_TURNING_POINTS
 
 # Larger times or signal values overflow float64 once squared and summed.
@@ -47,7 +47,7 @@ def _with_scatter(y, sigma_y, log_step, used):
     """(sigma, notes): ``sigma_y`` with the scatter of the amplitudes about a smooth
     envelope added where it is clearly more than the sample noise explains."""
     scatter = _amplitude_scatter(y, sigma_y, log_step, used)
-    white = float(np.sqrt(np.median(sigma_y[used] ** 2))) if np.any(used) else float("nan")
+    white = float(np.sqrt(_median(sigma_y[used] ** 2))) if np.any(used) else float("nan")
     if not (np.isfinite(scatter) and scatter > _EXCESS_SCATTER * white
             and scatter > 1e-5 * np.max(y)):
         return sigma_y, []
@@ -128,9 +128,9 @@ def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
         return
     values = y[index]
     smooth = _running_median(values, 5 if index.size >= 10 else 3)
-    noise = np.median(sigma_y[index])
-    start = np.median(smooth[: max(2, index.size // 10)])
-    end = np.median(smooth[-max(2, index.size // 10):])
+    noise = _median(sigma_y[index])
+    start = _median(smooth[: max(2, index.size // 10)])
+    end = _median(smooth[-max(2, index.size // 10):])
     if end > 1.3 * start and end - start > 5 * noise:
         raise RecordError(
             f"the oscillation in {source} grows (amplitude {start:.3g} at t = "

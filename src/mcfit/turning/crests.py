@@ -4,7 +4,6 @@ amplitudes as projections onto it."""
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from mcfit.turning.common import _amplitude_sigma, _running_median
 from mcfit.turning.windows import (_clipped, _decay_rates_at, _fit_windows,
@@ -27,7 +26,7 @@ _RELIABLE_SNR = 5.0
 _ENVELOPE_CRESTS = 9
 
 
-def _projected_crests(t, x, m, period, line, decay, limit):
+def _projected_crests(samples, m, period, line, decay, limit):
     """Crest times from the phase of the crests ``decay`` (a slice) of the measured crests
     ``m``, continued to ``limit``, and amplitudes as projections onto that phase
     (THEORY.md section 7: near the noise a magnitude is biased, a projection is not).
@@ -44,13 +43,13 @@ def _projected_crests(t, x, m, period, line, decay, limit):
     reliable = m.measured & in_decay & (m.magnitude > _RELIABLE_SNR * m.magnitude_sigma)
     crest_gamma = _decay_rates_at(crests, m.centres, m.magnitude, np.pi / half, reliable)
     crest_half = _local_half_periods(crests, period, np.ones(crests.size, dtype=bool))
-    projected = _fit_windows(t, x, crests, crest_signs, crest_half, crest_gamma, *line)
+    projected = _fit_windows(samples, crests, crest_signs, crest_half, crest_gamma, *line)
     keep = projected.count > 0  # crests filled in across a long gap have no samples
     if not keep.all():
         crests, crest_signs = crests[keep], crest_signs[keep]
         crest_half, crest_gamma = crest_half[keep], crest_gamma[:, keep]
         phase_variance = phase_variance[keep]
-        projected = _fit_windows(t, x, crests, crest_signs, crest_half, crest_gamma, *line)
+        projected = _fit_windows(samples, crests, crest_signs, crest_half, crest_gamma, *line)
     y, sigma_y = _phase_corrected(projected, phase_variance, m.noise_sigma)
     columns = (crests, crest_signs, y, sigma_y, crest_gamma[0] * crest_half,
                _window_reasons(projected, crest_signs))
@@ -137,17 +136,7 @@ def _smooth_crest_times(numbers, times, weights, count):
     inside = numbers < count
     w[numbers[inside]] = weights[inside]
     r[numbers[inside]] = (times - (origin + numbers * slope))[inside]
-    d = np.arange(-_PHASE_HALF_WIDTH, _PHASE_HALF_WIDTH + 1, dtype=np.float64)
-    kernel = (1.0 - (np.abs(d) / (_PHASE_HALF_WIDTH + 1)) ** 3) ** 3
-    # Moments sum_d K(d) d**p w(m+d), sum_d K(d)**2 d**p w(m+d) (for the variances) and
-    # sum_d K(d) d**p w(m+d) r(m+d) about each m.
-    moment = np.array([ndimage.correlate1d(w, kernel * d**p, mode="constant")
-                       for p in range(5)])
-    spread = np.array([ndimage.correlate1d(w, kernel**2 * d**p, mode="constant")
-                       for p in range(5)])
-    target = np.array([ndimage.correlate1d(w * r, kernel * d**p, mode="constant")
-                       for p in range(3)])
-    points = ndimage.correlate1d((w > 0).astype(np.float64), np.ones(d.size), mode="constant")
+    moment, spread, target, points = _kernel_sums(w, r)
     # Per crest: the 3x3 and 2x2 moment matrices (quadratic, linear), and the cross
     # moments of the two fits (3x2), all Hankel in the moments.
     hankel3 = np.array([[i + j for j in range(3)] for i in range(3)])
@@ -198,6 +187,36 @@ def _smooth_crest_times(numbers, times, weights, count):
     smooth[beyond] = smooth[last] + tail_slope * steps
     variance[beyond] = _continued_variance(variance[last], growth, steps)
     return origin + grid * slope + smooth, slope + tail_slope, variance, growth
+
+
+def _kernel_sums(w, r):
+    """(moment, spread, target, points) about each crest m: rows p of sum_d K(d) d**p
+    w(m+d) (p < 5), of sum_d K(d)**2 d**p w(m+d) (p < 5, for the variances), of
+    sum_d K(d) d**p w(m+d) r(m+d) (p < 3), and the crests measured within reach; w and r
+    are 0 beyond the ends. One product of the windows about every crest with the
+    kernels."""
+    reach = _PHASE_HALF_WIDTH
+    padded = np.zeros((3, w.size + 2 * reach))
+    padded[0, reach:-reach] = w
+    padded[1, reach:-reach] = w * r
+    padded[2, reach:-reach] = w > 0
+    # windows[i, m] is padded[i, m:m + 2*reach + 1], a view.
+    windows = np.ndarray((3, w.size, 2 * reach + 1), buffer=padded,
+                         strides=(padded.strides[0], padded.itemsize, padded.itemsize))
+    sums = windows @ _KERNEL_COLUMNS
+    return sums[0, :, :5].T, sums[0, :, 5:10].T, sums[1, :, :3].T, sums[2, :, 10]
+
+
+def _kernel_columns():
+    """Columns K(d)*d**p (p < 5), K(d)**2*d**p (p < 5) and 1 over the smoother's reach
+    d = -_PHASE_HALF_WIDTH.._PHASE_HALF_WIDTH, K the tricube kernel."""
+    d = np.arange(-_PHASE_HALF_WIDTH, _PHASE_HALF_WIDTH + 1, dtype=np.float64)
+    kernel = (1.0 - (np.abs(d) / (_PHASE_HALF_WIDTH + 1)) ** 3) ** 3
+    return np.column_stack([kernel * d**p for p in range(5)]
+                           + [kernel**2 * d**p for p in range(5)] + [np.ones(d.size)])
+
+
+_KERNEL_COLUMNS = _kernel_columns()
 
 
 def _continued_variance(variance, growth, steps):

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from mcfit.turning.common import _BLOCK_SAMPLES
+from mcfit.turning.common import _BLOCK_SAMPLES, _median
 
+# Coefficients of a sixth difference.
+_SIXTH_DIFFERENCE = np.array([1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0])
 # Sixth-difference windows needed to fit the equilibrium's drift as well as its offset.
 _DRIFT_WINDOWS = 8
 
@@ -74,17 +76,16 @@ def _equilibrium_correction(centres, fit, half, t_ref):
     # differences leave its curvature, which biases the offset when Q is low) while the
     # alternation, at the sequence's Nyquist frequency, gains 64 against white noise's
     # sqrt(924), more than second differences' 4 against sqrt(6).
-    coefficients = np.array([1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0])
+    coefficients = _SIXTH_DIFFERENCE
     width = coefficients.size
     if valid.size < width:
         return 0.0, 0.0
-    window_valid = np.all(np.lib.stride_tricks.sliding_window_view(valid, width), axis=1)
+    window_valid = _all_within(valid, width)
     # Across a gap the decay is not smooth in the crest index: windows whose neighbouring
     # crests are all about one half-period apart are used when there are enough of them
     # to fit offset and drift; otherwise every window, as a sparse record needs.
-    step_ok = np.diff(centres) < 0.75 * (half[1:] + half[:-1])
-    clean = window_valid & np.all(np.lib.stride_tricks.sliding_window_view(step_ok, width - 1),
-                                  axis=1)
+    step_ok = centres[1:] - centres[:-1] < 0.75 * (half[1:] + half[:-1])
+    clean = window_valid & _all_within(step_ok, width - 1)
     if np.count_nonzero(clean) >= _DRIFT_WINDOWS:
         window_valid = clean
     index = np.flatnonzero(window_valid)  # first point of each full window
@@ -98,16 +99,22 @@ def _equilibrium_correction(centres, fit, half, t_ref):
     f0 = k_window @ coefficients
     f1 = (k_window * tau_window) @ coefficients
     if index.size >= _DRIFT_WINDOWS:
-        design = np.stack([f0, f1], axis=1)
+        design = np.array([f0, f1]).T
     else:
         design = f0[:, None]
     solution, *_ = np.linalg.lstsq(design, rows, rcond=None)
-    if not np.all(np.isfinite(solution)):
+    if not np.isfinite(solution).all():
         return 0.0, 0.0
     # y_obs = y_true + kappa*(e_true - e_used): the correction adds the error to e.
     d0 = float(solution[0])
     d1 = float(solution[1]) if solution.size > 1 else 0.0
     return d0, d1
+
+
+def _all_within(flags, width):
+    """Whether ``flags[i:i + width]`` are all true, for each i (a count by cumulative sum)."""
+    count = np.concatenate([[0], np.cumsum(flags)])
+    return count[width:] - count[:-width] == width
 
 
 def _table_equilibrium(values):
@@ -116,7 +123,7 @@ def _table_equilibrium(values):
     An error in the level raises one kind of extremum and lowers the other, which shows in
     the second differences of the amplitude sequence; choose the level that removes it.
     """
-    level = float(np.median(values))
+    level = float(_median(values))
     for _ in range(5):
         signs = np.where(values >= level, 1.0, -1.0)
         rows = np.diff(signs * (values - level), 2)

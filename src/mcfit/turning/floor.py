@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy.special import ndtri
 
-from mcfit.turning.common import _running_median
+from mcfit.turning.common import _median, _running_median
 from mcfit.turning.result import MIN_TURNING_POINTS
 
 # An amplitude below FLOOR_FACTOR times the floor level is dominated by the floor.
@@ -40,9 +41,9 @@ def _vibration_floor(centres, signs, magnitude, magnitude_sigma, fit, candidate,
         return 0.0, None
     values = magnitude[index]
     smooth = _running_median(values, max(5, (index.size // 30) | 1))
-    white = noise_sigma * np.sqrt(2.0 * np.median(fit.gain[index]))
+    white = noise_sigma * np.sqrt(2.0 * _median(fit.gain[index]))
     m = max(5, index.size // 8)
-    final = float(np.median(smooth[-m:]))
+    final = float(_median(smooth[-m:]))
     if not (index.size >= 3 * m and final < 0.25 * np.max(smooth) and final > 3 * white):
         return 0.0, None
     above = np.flatnonzero(smooth >= FLOOR_FACTOR * final)
@@ -81,32 +82,38 @@ def _log_decay_rate(index, centres, signs, magnitude, magnitude_sigma):
     y = magnitude[index]
     relative = magnitude_sigma[index] / y
     s = centres[index] - np.mean(centres[index])
-    design = np.column_stack([np.ones_like(s), s, signs[index]])
-    if np.unique(signs[index]).size < 2:
+    sign = signs[index]
+    design = np.column_stack([np.ones_like(s), s, sign])
+    if sign.size == 0 or not (sign != sign[0]).any():
         design = design[:, :2]
-    solution, _, rank, _ = np.linalg.lstsq(design, np.log(y), rcond=None)
+    log_y = np.log(y)
+    solution, _, rank, _ = np.linalg.lstsq(design, log_y, rcond=None)
     dof = index.size - rank
     level = float(np.exp(solution[0]))
     if dof < 1:
         return float(solution[1]), float("inf"), level
-    residual = np.log(y) - design @ solution
-    scale = max(float(np.sqrt(residual @ residual / dof)), float(np.median(relative)))
+    residual = log_y - design @ solution
+    scale = max(float(np.sqrt(residual @ residual / dof)), float(_median(relative)))
     covariance = np.linalg.pinv(design.T @ design)
     return float(solution[1]), scale * float(np.sqrt(covariance[1, 1])), level
 
 
 # Crests per group in the test for a signal left in the tail.
 _NOISE_GROUP = 9
-# A group's mean amplitude this many standard errors above 0 shows a signal.
+# A group's mean amplitude this many standard errors above 0 shows a signal; on a long
+# tail of noise, enough more that noise alone crosses it in one record of this many.
 _PRESENT_Z = 4.0
+_LOOK_ELSEWHERE = 100
 
 
 def _sinks_below_noise(y, sigma, candidate):
     """Index of the first crest after the oscillation is lost in the noise, or None.
 
     The signal counts as present while the mean of some _NOISE_GROUP successive amplitudes
-    is 4 standard errors above 0; one more group is kept past the last such, so that
-    every crest where the envelope is near the noise stays in the fit.
+    is 4 standard errors above 0, or more on a long record: the threshold that noise
+    alone crosses once in _LOOK_ELSEWHERE records, however many groups are scanned. One
+    more group is kept past the last such, so that every crest where the envelope is
+    near the noise stays in the fit.
     """
     index = np.flatnonzero(candidate & np.isfinite(sigma) & (sigma > 0))
     group = _NOISE_GROUP
@@ -114,7 +121,8 @@ def _sinks_below_noise(y, sigma, candidate):
         return None
     z = y[index] / sigma[index]
     mean_z = np.convolve(z, np.ones(group), mode="valid") / np.sqrt(group)
-    present = np.flatnonzero(mean_z > _PRESENT_Z)
+    threshold = max(_PRESENT_Z, -float(ndtri(1.0 / (_LOOK_ELSEWHERE * mean_z.size))))
+    present = np.flatnonzero(mean_z > threshold)
     if present.size == 0:
         return None
     cut = int(present[-1]) + 2 * group
@@ -142,13 +150,13 @@ def _tail_notes(crests, y, sigma_y, reasons, floor_time, floor_level, phase_lost
         in_floor = (np.arange(y.size) >= cut) & (reasons == "")
         reasons[in_floor] = "noise floor"
         floor_time = float(crests[cut])
-        floor_level = float(np.median(sigma_y[reasons == ""]))
+        floor_level = float(_median(sigma_y[reasons == ""]))
         return floor_time, floor_level, [
             f"noise floor: the oscillation is lost in the noise (amplitude sigma "
             f"{floor_level:.3g}); {int(in_floor.sum())} turning points from "
             f"t = {floor_time:.6g} excluded"]
     if phase_lost is not None:
-        floor_level = float(np.median(sigma_y[reasons == ""])) if np.any(reasons == "") \
+        floor_level = float(_median(sigma_y[reasons == ""])) if np.any(reasons == "") \
             else 0.0
         return phase_lost, floor_level, [
             f"noise floor: the crest phase is lost in the noise from t = {phase_lost:.6g} "

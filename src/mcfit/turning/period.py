@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mcfit.turning.common import HALF_CYCLE_SPACING
+from mcfit.turning.common import HALF_CYCLE_SPACING, _median
 
 
 def _period_estimate(centres, signs, valid, period):
@@ -14,7 +14,7 @@ def _period_estimate(centres, signs, valid, period):
     spacing = np.diff(centres)[pairs]
     low, high = (fraction * period for fraction in HALF_CYCLE_SPACING)
     spacing = spacing[(spacing > low) & (spacing < high)]
-    return float(2 * np.median(spacing)) if spacing.size >= 2 else period
+    return float(2 * _median(spacing)) if spacing.size >= 2 else period
 
 
 def _period_and_drift(centres, signs, y, used, period, weights=None):

@@ -37,7 +37,7 @@ class RefinedCrests:
     line: tuple  # equilibrium (e0, e1, t_ref)
 
 
-def _refine(t, x, centres, signs, line, period, noise, held):
+def _refine(samples, centres, signs, line, period, noise, held):
     """Half-cycle fits repeated, each pass re-centring the windows on the fitted crests and
     refining the equilibrium from the alternation of maxima and minima, until the shifts are
     within the noise (at most _REFINE_PASSES). Crests before ``held`` count nowhere."""
@@ -46,7 +46,7 @@ def _refine(t, x, centres, signs, line, period, noise, held):
     valid = np.ones(centres.size, dtype=bool)
     for refinement in range(_REFINE_PASSES):
         half = _local_half_periods(centres, period, valid)
-        fit = _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref)
+        fit = _fit_windows(samples, centres, signs, half, gamma, e0, e1, t_ref)
         # Flattened crests would bias the equilibrium update.
         fit.valid &= ~_clipped(fit, signs) & (np.arange(centres.size) >= _held_crests(
             centres, held, period))
@@ -74,16 +74,7 @@ def _recentred(centres, signs, fit, half):
 def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, source):
     """Crest times and signs: half-cycles split by crossings with hysteresis."""
     width = max(1, int(samples_per_cycle * _SMOOTHING_CYCLES))
-    if width > 1:
-        cumulative = np.concatenate([[0.0], np.cumsum(x)])
-        smooth = np.empty_like(x)
-        half = width // 2
-        lo = np.clip(np.arange(x.size) - half, 0, x.size)
-        hi = np.clip(np.arange(x.size) - half + width, 0, x.size)
-        smooth[:] = (cumulative[hi] - cumulative[lo]) / (hi - lo)
-        del cumulative, lo, hi
-    else:
-        smooth = x.copy()
+    smooth = _moving_average(x, width) if width > 1 else x.copy()
     smooth -= e0 + e1 * (t - t_ref)
     scale = float(np.percentile(np.abs(smooth[: min(smooth.size, 1 << 22)]), 99.5))
     threshold = _HYSTERESIS_Z * noise / np.sqrt(width)
@@ -108,11 +99,7 @@ def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, sourc
     stops = np.concatenate([starts[1:], [x.size]])
     run_sign = side[starts].astype(np.int64)
     del side
-    # Crest of each run: index of its largest value on its side.
-    best = np.empty(starts.size, dtype=np.int64)
-    for k in range(starts.size):
-        segment = smooth[starts[k]:stops[k]]
-        best[k] = starts[k] + (np.argmax(segment) if run_sign[k] > 0 else np.argmin(segment))
+    best = _run_crests(smooth, starts, stops, run_sign)
     # A crest on the very first or last sample is a cut half-cycle: no crest inside.
     inside = (best > 0) & (best < x.size - 1)
     centres = t[best[inside]]
@@ -121,6 +108,38 @@ def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, sourc
         raise RecordError(f"only {centres.size} turning points found in {source} (need "
                           f"{MIN_TURNING_POINTS}). Use a record of several cycles.")
     return centres.astype(np.float64), signs
+
+
+def _moving_average(x, width):
+    """Mean of the ``width`` samples about each one (fewer at the ends, where the window
+    is cut), from one cumulative sum."""
+    n = x.size
+    cumulative = np.concatenate([[0.0], np.cumsum(x)])
+    half = width // 2
+    if width > n:
+        lo = np.clip(np.arange(n) - half, 0, n)
+        hi = np.clip(np.arange(n) - half + width, 0, n)
+        return (cumulative[hi] - cumulative[lo]) / (hi - lo)
+    smooth = np.empty_like(x)
+    # Sample i averages cumulative[lo:hi] with lo = max(i - half, 0), hi = min(lo + width, n)
+    # after the first ``half``: whole windows in the middle, cut ones at the ends.
+    smooth[half:n - width + half + 1] = (cumulative[width:] - cumulative[:n - width + 1]) / width
+    head = np.arange(half) - half + width
+    smooth[:half] = cumulative[head] / head
+    tail = np.arange(n - width + half + 1, n) - half
+    smooth[n - width + half + 1:] = (cumulative[n] - cumulative[tail]) / (n - tail)
+    return smooth
+
+
+def _run_crests(smooth, starts, stops, run_sign):
+    """Index of the crest of each run ``starts:stops`` (contiguous, covering the record from
+    ``starts[0]``): its first sample farthest out on its side, all runs at once."""
+    lengths = stops - starts
+    signed = smooth[starts[0]:] * np.repeat(run_sign, lengths)
+    offsets = starts - starts[0]
+    peak = np.maximum.reduceat(signed, offsets)
+    at_peak = np.flatnonzero(signed == np.repeat(peak, lengths))
+    return at_peak[np.searchsorted(at_peak, offsets)] + starts[0]
 
 
 def _shifts_within_noise(fit, half, noise):

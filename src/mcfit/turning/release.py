@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mcfit.turning.common import _robust_sigma
+from mcfit.turning.common import _median, _robust_sigma
 from mcfit.turning.result import MIN_TURNING_POINTS
 
 # A record may start before the free decay: the oscillator held still, or driven or still
@@ -74,7 +74,7 @@ def _held_until(t, x, period, noise):
         start, stop = stop, end
     if stop == 0:
         return None
-    level = np.median(x[:stop])
+    level = _median(x[:stop])
     away = np.abs(x[start:] - level) > _DEPARTURE_Z * noise
     moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one noise spike
     return float(t[start + moving[0]]) if moving.size else None
@@ -86,7 +86,7 @@ def _release_scatter(values, signs, sigma):
     sample noise gives when there are too few crests."""
     d3 = np.concatenate([np.diff(values[signs == s], 3) for s in (-1, 1)])
     if d3.size < _SCATTER_DIFFERENCES:
-        return float(np.median(sigma))
+        return float(_median(sigma))
     return float(_robust_sigma(d3) / np.sqrt(20.0))
 
 

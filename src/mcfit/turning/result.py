@@ -94,34 +94,6 @@ class TurningPoints:
         """Number of used turning points."""
         return int(np.count_nonzero(self.used))
 
-    def to_dict(self):
-        """Plain Python data (lists, floats, None for NaN), ready for JSON."""
-        def number(value):
-            value = float(value)
-            return value if np.isfinite(value) else None
-
-        return {
-            "t": [float(v) for v in self.t],
-            "y": [float(v) for v in self.y],
-            "sigma": [number(v) for v in self.sigma],
-            "sign": [int(v) for v in self.sign],
-            "used": [bool(v) for v in self.used],
-            "excluded_reason": list(self.excluded_reason),
-            "period": number(self.period),
-            "period_sigma": number(self.period_sigma),
-            "period_drift": number(self.period_drift),
-            "period_drift_sigma": number(self.period_drift_sigma),
-            "equilibrium": number(self.equilibrium),
-            "equilibrium_drift": number(self.equilibrium_drift),
-            "noise_sigma": number(self.noise_sigma),
-            "noise_floor": number(self.noise_floor),
-            "noise_floor_time": number(self.noise_floor_time),
-            "release_time": number(self.release_time),
-            "gaps": [[float(a), float(b)] for a, b in self.gaps],
-            "domain": self.domain,
-            "notes": list(self.notes),
-        }
-
 
 def _frozen(array):
     array = np.ascontiguousarray(array)

@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from mcfit.errors import RecordError
-from mcfit.turning.common import _robust_sigma
+from mcfit.turning.common import _median, _robust_sigma
 
 # Longest stretch fed to the FFT for the coarse period and noise level.
 _SPECTRUM_SAMPLES = 1 << 21
@@ -13,6 +15,8 @@ _SPECTRUM_SAMPLES = 1 << 21
 _LONG_GAP_STEPS = 32
 # A time step longer than this many median steps is a gap.
 _GAP_STEPS = 2.5
+# Hann windows of records up to this many samples are kept for the next record.
+_CACHED_WINDOW = 1 << 16
 # The white-noise floor is read from the spectrum above this multiple of the oscillation's
 # frequency.
 _NOISE_BAND = 2.5
@@ -74,7 +78,7 @@ def _spectrum(t, x, dt, steps):
         slope, mean = np.polyfit(index[inside], v[inside], 1)
         v -= mean + slope * index
         v[outside] = 0.0
-    window = np.hanning(m)
+    window, window_sum, energy = _hann(m)
     v *= window
     power = np.abs(np.fft.rfft(v)) ** 2
     del v
@@ -90,10 +94,25 @@ def _spectrum(t, x, dt, steps):
     else:
         offset = 0.0
     f0 = (k + offset) * frequencies[1]
-    energy = np.dot(window, window)
     noise = _spectral_noise(power, frequencies, f0, energy, x[:n])
     return ((1.0 / f0 if f0 > 0 else float("nan")), noise,
-            (frequencies, power, float(window.sum()), energy, k))
+            (frequencies, power, window_sum, energy, k))
+
+
+def _hann(m):
+    """(Hann window of ``m`` points, its sum, its sum of squares); those of the short
+    records, where computing it costs most against the rest, are kept for the next one."""
+    if m <= _CACHED_WINDOW:
+        return _cached_hann(m)
+    window = np.hanning(m)
+    return window, float(window.sum()), np.dot(window, window)
+
+
+@functools.lru_cache(maxsize=4)
+def _cached_hann(m):
+    window = np.hanning(m)
+    window.setflags(write=False)
+    return window, float(window.sum()), np.dot(window, window)
 
 
 def _spectral_noise(power, frequencies, f0, energy, x):
@@ -101,7 +120,7 @@ def _spectral_noise(power, frequencies, f0, energy, x):
     window's sum of squares)."""
     band = power[frequencies > _NOISE_BAND * f0]
     if band.size >= 16:
-        return float(np.sqrt(np.median(band) / (np.log(2) * energy)))
+        return float(np.sqrt(_median(band) / (np.log(2) * energy)))
     # Too few samples per cycle for a clean band: differences overestimate, safely.
     d = np.diff(x)
     return float(_robust_sigma(d) / np.sqrt(2))

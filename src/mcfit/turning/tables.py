@@ -6,7 +6,7 @@ import numpy as np
 
 from mcfit.errors import RecordError
 from mcfit.turning.checks import _check_decay, _check_range
-from mcfit.turning.common import _robust_sigma
+from mcfit.turning.common import _median, _robust_sigma
 from mcfit.turning.equilibrium import _table_equilibrium
 from mcfit.turning.result import MIN_TURNING_POINTS, TurningPoints, _frozen
 
@@ -67,7 +67,7 @@ def turning_points_from_table(t, values, *, domain="time", source="record"):
     if np.count_nonzero(used) < MIN_TURNING_POINTS:
         raise RecordError(f"only {np.count_nonzero(used)} non-zero amplitudes in {source} "
                           f"(need {MIN_TURNING_POINTS}). Use a longer table.")
-    spacing = float(np.median(np.diff(t)))
+    spacing = float(_median(np.diff(t)))
     if domain == "cycle":
         period = 1.0
     elif np.any(signs != 0):

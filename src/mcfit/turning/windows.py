@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from mcfit.turning.common import (_BLOCK_SAMPLES, HALF_CYCLE_SPACING, _amplitude_sigma,
+from mcfit.turning.common import (_BLOCK_SAMPLES, HALF_CYCLE_SPACING, _amplitude_sigma, _median,
                                   _running_median)
 
 
@@ -30,10 +30,10 @@ class MeasuredCrests:
         return self.centres + np.where(self.fit.valid, self.fit.shift, 0.0)
 
 
-def _measure(t, x, crests, noise):
+def _measure(samples, crests, noise):
     """Fit the half-cycles of the refined ``crests`` once more and measure the crests."""
     half = _local_half_periods(crests.centres, crests.period, crests.valid)
-    fit = _fit_windows(t, x, crests.centres, crests.signs, half, crests.gamma, *crests.line)
+    fit = _fit_windows(samples, crests.centres, crests.signs, half, crests.gamma, *crests.line)
     noise_sigma = _pooled_noise(fit)
     if not np.isfinite(noise_sigma):
         noise_sigma = noise
@@ -59,26 +59,51 @@ class _WindowFits:
         self.projection = np.zeros(k)  # amplitude with the crest fixed at the centre
         self.projection_gain = np.full(k, np.inf)  # var(projection) / sigma**2
         self.phase_sensitivity = np.zeros(k)  # d(projection)/d(crest phase) / projection
-        self.peak = np.zeros(k)       # fitted extreme value of x (equilibrium included)
         self.at_max = np.zeros(k, dtype=np.int64)  # samples at the record's max / min level
         self.at_min = np.zeros(k, dtype=np.int64)
 
 
-def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
-    """Least-squares fit of exp(-g*s - h*s**2/2)*(A cos ws + B sin ws) over each half-cycle.
+@dataclass(frozen=True)
+class Samples:
+    """The finite samples of a record, with what every pass of half-cycle fits needs of
+    them, found once: the time steps and the samples at the record's largest and smallest
+    level (within 1e-9 of its range, for clipping)."""
 
-    ``gamma`` holds g (row 0) and h = dg/dt (row 1) at each crest."""
+    t: np.ndarray
+    x: np.ndarray
+    steps: np.ndarray
+    at_top: np.ndarray
+    at_bottom: np.ndarray
+
+    @classmethod
+    def of(cls, t, x, steps=None):
+        """Samples ``t``, ``x`` (``steps``: ``np.diff(t)`` when already known)."""
+        top = float(np.max(x))
+        bottom = float(np.min(x))
+        tolerance = 1e-9 * (top - bottom)
+        return cls(t, x, np.diff(t) if steps is None else steps,
+                   np.flatnonzero(x >= top - tolerance), np.flatnonzero(x <= bottom + tolerance))
+
+
+def _fit_windows(samples, centres, signs, half, gamma, e0, e1, t_ref):
+    """Least-squares fit of exp(-g*s - h*s**2/2)*(A cos ws + B sin ws) over each half-cycle
+    of ``samples`` (:class:`Samples`).
+
+    ``gamma`` holds g (row 0) and h = dg/dt (row 1) at each crest. All windows at once:
+    the samples of every window are gathered into one array (in blocks of
+    _BLOCK_SAMPLES) and the sums of each window's run taken in one pass."""
+    t, x = samples.t, samples.x
     k = centres.size
     out = _WindowFits(k)
     lo = np.searchsorted(t, centres - 0.5 * half, side="left")
     hi = np.searchsorted(t, centres + 0.5 * half, side="left")
     lo[1:] = np.maximum(lo[1:], hi[:-1])  # windows must not share samples
     hi = np.maximum(hi, lo)
-    omega = np.pi / half
-    top = float(np.max(x))
-    bottom = float(np.min(x))
-    tolerance = 1e-9 * (top - bottom)
     out.edge = (centres - 0.5 * half < t[0]) | (centres + 0.5 * half > t[-1])
+    out.count = hi - lo
+    out.at_max, out.at_min = (np.searchsorted(where, hi) - np.searchsorted(where, lo)
+                              for where in (samples.at_top, samples.at_bottom))
+    unbroken = _without_gaps(samples.steps, lo, hi, half)
     first = 0
     while first < k:
         # Windows whose samples fit in one block.
@@ -86,88 +111,115 @@ def _fit_windows(t, x, centres, signs, half, gamma, e0, e1, t_ref):
         last = first + max(1, int(np.searchsorted(cumulative, _BLOCK_SAMPLES, side="right")))
         last = min(last, k)
         sel = slice(first, last)
-        lengths = hi[sel] - lo[sel]
-        total = int(lengths.sum())
-        count = last - first
-        starts = np.cumsum(lengths) - lengths
-        nonempty = lengths > 0
-        window = np.repeat(np.arange(count), lengths)
-        index = np.arange(total) + np.repeat(lo[sel] - starts, lengths)
-        tt = t[index]
-        xx = x[index]
-        s = tt - centres[sel][window]
-        r = xx - (e0 + e1 * (tt - t_ref))
-        ws = omega[sel][window] * s
-        envelope = np.exp(-(gamma[0][sel][window] + 0.5 * gamma[1][sel][window] * s) * s)
-        u1 = envelope * np.cos(ws)
-        u2 = envelope * np.sin(ws)
-        # Windows are contiguous runs of the gathered samples: sum each run at once.
-        columns = np.empty((10, total))
-        for row, (left, right) in enumerate(((u1, u1), (u1, u2), (u2, u2), (u1, r), (u2, r),
-                                             (u1, 1.0), (u2, 1.0), (r, r))):
-            np.multiply(left, right, out=columns[row])
-        np.greater_equal(xx, top - tolerance, out=columns[8])
-        np.less_equal(xx, bottom + tolerance, out=columns[9])
-        sums = np.zeros((columns.shape[0], count))
-        s_min = np.full(count, np.inf)
-        s_max = np.full(count, -np.inf)
-        max_step = np.zeros(count)
-        if total:
-            begin = starts[nonempty]
-            sums[:, nonempty] = np.add.reduceat(columns, begin, axis=1)
-            s_min[nonempty] = s[begin]
-            s_max[nonempty] = s[begin + lengths[nonempty] - 1]
-            # Largest step inside each window: a gap.
-            step = np.diff(tt, prepend=tt[0])
-            step[begin] = 0.0
-            max_step[nonempty] = np.maximum.reduceat(step, begin)
-        s11, s12, s22, b1, b2, s1, s2, rr, at_max, at_min = sums
-        del tt, xx, s, r, ws, envelope, u1, u2, index, window, columns
-
-        det = s11 * s22 - s12 * s12
-        good = (lengths >= 3) & (det > 1e-12 * np.maximum(s11 * s22, 1e-300))
-        det = np.where(good, det, 1.0)
-        a = (s22 * b1 - s12 * b2) / det
-        b = (s11 * b2 - s12 * b1) / det
-        sg = signs[sel]
-        angle = np.arctan2(sg * b, sg * a)  # crest phase: cos(w*s - angle) = sign there
-        shift = angle / omega[sel]
-        decay = np.exp(-(gamma[0][sel] + 0.5 * gamma[1][sel] * shift) * shift)
-        g1 = sg * decay * np.cos(angle)
-        g2 = sg * decay * np.sin(angle)
-        y_signed = (a * g1 + b * g2) * sg
-        gain = (g1 * g1 * s22 - 2 * g1 * g2 * s12 + g2 * g2 * s11) / det
-        c1 = (s22 * s1 - s12 * s2) / det
-        c2 = (s11 * s2 - s12 * s1) / det
-        offset_gain = g1 * c1 + g2 * c2
-        rss = np.maximum(rr - a * b1 - b * b2, 0.0)
-        span = s_max - s_min
-        hs = half[sel]
-        complete = ((lengths >= 3) & (s11 > 0) & (span >= 0.4 * hs) & (s_min < 0.1 * hs)
-                    & (s_max > -0.1 * hs) & (max_step < 0.5 * hs))
-        valid = complete & good & (np.abs(angle) < 0.5 * np.pi)
-        # With the phase known, one free parameter: linear in the data, so unbiased however
-        # small the crest (the magnitude of the two-parameter fit is not).
-        s11_safe = np.where(s11 > 0, s11, 1.0)
-        out.projection[sel] = np.where(complete, sg * b1 / s11_safe, 0.0)
-        out.projection_gain[sel] = np.where(complete, 1.0 / s11_safe, np.inf)
-        # Moving the crest by a phase d changes the projection by -y*d*s12/s11 to first
-        # order: nothing for a symmetric window, the most for a window cut at its crest.
-        out.phase_sensitivity[sel] = np.where(complete, -s12 / s11_safe, 0.0)
-        out.complete[sel] = complete
-        out.y[sel] = y_signed * sg  # amplitude along the expected sign (< 0 if wrong)
-        out.shift[sel] = shift
-        out.gain[sel] = np.where(good, gain, np.inf)
-        out.offset_gain[sel] = np.where(good, offset_gain, 0.0)
-        out.rss[sel] = rss
-        out.count[sel] = lengths
-        out.valid[sel] = valid & (out.y[sel] > 0)
-        out.peak[sel] = (e0 + e1 * (centres[sel] + shift - t_ref)) + sg * out.y[sel]
-        out.at_max[sel] = at_max.astype(np.int64)
-        out.at_min[sel] = at_min.astype(np.int64)
+        sums = _window_sums(t, x, lo[sel], hi[sel], centres[sel], np.pi / half[sel],
+                            gamma[:, sel], (e0, e1, t_ref))
+        _solve_windows(out, sel, sums, t, lo[sel], hi[sel], centres, signs, half, gamma,
+                       unbroken[sel])
         first = last
     out.y = np.abs(out.y)  # envelope amplitude (already positive for valid windows)
     return out
+
+
+def _without_gaps(steps, lo, hi, half):
+    """Whether each window ``lo:hi`` has no time step (``steps``) of half its half-period
+    or more."""
+    limit = 0.5 * half
+    wide = np.flatnonzero(steps >= np.min(limit, initial=np.inf))
+    unbroken = np.ones(lo.size, dtype=bool)
+    if wide.size == 0:  # the usual case: no step can break a window
+        return unbroken
+    # The widest step inside each window, from the few wide ones (steps lo..hi-2).
+    begin = np.searchsorted(wide, lo)
+    end = np.searchsorted(wide, np.maximum(hi - 1, lo))
+    some = end > begin
+    widest = np.maximum.reduceat(np.append(steps[wide], 0.0),
+                                 np.column_stack([begin[some], end[some]]).ravel())[::2]
+    unbroken[some] = widest < limit[some]
+    return unbroken
+
+
+def _window_sums(t, x, lo, hi, centres, omega, gamma, line):
+    """Rows (s11, s12, s22, b1, b2, s1, s2, rr) of sums over each window's samples of
+    u1*u1, u1*u2, u2*u2, u1*r, u2*r, u1, u2, r*r, with u1, u2 the envelope times cos and
+    sin and r the signal about the equilibrium line; zeros for empty windows."""
+    e0, e1, t_ref = line
+    lengths = hi - lo
+    total = int(lengths.sum())
+    sums = np.zeros((8, lengths.size))
+    nonempty = lengths > 0
+    if total == 0:
+        return sums
+    starts = np.cumsum(lengths) - lengths
+    index = np.arange(total) + np.repeat(lo - starts, lengths)
+    tt = t[index]
+    s = tt - np.repeat(centres, lengths)
+    columns = np.empty((8, total))
+    u1, u2, r = columns[5], columns[6], columns[7]
+    np.subtract(x[index], e0 + e1 * (tt - t_ref), out=r)
+    del tt, index
+    ws = np.repeat(omega, lengths) * s
+    np.cos(ws, out=u1)
+    np.sin(ws, out=u2)
+    del ws
+    if np.any(gamma):  # the envelope is 1 before the decay rates are known
+        envelope = np.exp(-(np.repeat(gamma[0], lengths)
+                            + 0.5 * np.repeat(gamma[1], lengths) * s) * s)
+        u1 *= envelope
+        u2 *= envelope
+        del envelope
+    del s
+    for row, (left, right) in enumerate(((u1, u1), (u1, u2), (u2, u2), (u1, r), (u2, r))):
+        np.multiply(left, right, out=columns[row])
+    r *= r
+    sums[:, nonempty] = np.add.reduceat(columns, starts[nonempty], axis=1)
+    return sums
+
+
+def _solve_windows(out, sel, sums, t, lo, hi, centres, signs, half, gamma, unbroken):
+    """Fill ``out[sel]`` from the window sums: the two-parameter fit, the crest phase,
+    the projection with the crest fixed, and whether the window is complete."""
+    s11, s12, s22, b1, b2, s1, s2, rr = sums
+    lengths = hi - lo
+    centres, sg, half, gamma = centres[sel], signs[sel], half[sel], gamma[:, sel]
+    omega = np.pi / half
+    det = s11 * s22 - s12 * s12
+    good = (lengths >= 3) & (det > 1e-12 * np.maximum(s11 * s22, 1e-300))
+    det = np.where(good, det, 1.0)
+    # The fit (a, b) and its change with the equilibrium (c1, c2): the inverse of the
+    # 2x2 normal matrix on the right-hand sides (b1, b2) and (s1, s2), all rows at once.
+    a, b, c1, c2 = (sums[[2, 0, 2, 0]] * sums[[3, 4, 5, 6]] - s12 * sums[[4, 3, 6, 5]]) / det
+    angle = np.arctan2(sg * b, sg * a)  # crest phase: cos(w*s - angle) = sign there
+    shift = angle / omega
+    decay = sg * np.exp(-(gamma[0] + 0.5 * gamma[1] * shift) * shift)
+    g1 = decay * np.cos(angle)
+    g2 = decay * np.sin(angle)
+    y_signed = (a * g1 + b * g2) * sg
+    gain = (g1 * g1 * s22 - 2 * g1 * g2 * s12 + g2 * g2 * s11) / det
+    offset_gain = g1 * c1 + g2 * c2
+    rss = np.maximum(rr - a * b1 - b * b2, 0.0)
+    # The first and last sample of each window, relative to its centre (windows of fewer
+    # than 3 samples are incomplete whatever these are).
+    s_min = t[np.minimum(lo, t.size - 1)] - centres
+    s_max = t[np.maximum(hi - 1, 0)] - centres
+    complete = ((lengths >= 3) & (s11 > 0) & (s_max - s_min >= 0.4 * half)
+                & (s_min < 0.1 * half) & (s_max > -0.1 * half) & unbroken)
+    valid = complete & good & (np.abs(angle) < 0.5 * np.pi)
+    # With the phase known, one free parameter: linear in the data, so unbiased however
+    # small the crest (the magnitude of the two-parameter fit is not).
+    s11_safe = np.where(s11 > 0, s11, 1.0)
+    out.projection[sel] = np.where(complete, sg * b1 / s11_safe, 0.0)
+    out.projection_gain[sel] = np.where(complete, 1.0 / s11_safe, np.inf)
+    # Moving the crest by a phase d changes the projection by -y*d*s12/s11 to first
+    # order: nothing for a symmetric window, the most for a window cut at its crest.
+    out.phase_sensitivity[sel] = np.where(complete, -s12 / s11_safe, 0.0)
+    out.complete[sel] = complete
+    y = y_signed * sg  # amplitude along the expected sign (< 0 if wrong)
+    out.y[sel] = y
+    out.shift[sel] = shift
+    out.gain[sel] = np.where(good, gain, np.inf)
+    out.offset_gain[sel] = np.where(good, offset_gain, 0.0)
+    out.rss[sel] = rss
+    out.valid[sel] = valid & (y > 0)
 
 
 def _pooled_noise(fit):
@@ -179,13 +231,17 @@ def _pooled_noise(fit):
     variance = fit.rss[ok] / dof[ok]
     # Each window's variance is sigma**2 * chi2(dof)/dof: rescale by its median (chdtri
     # gives the quantile of stats.chi2.median without the distribution's overhead).
-    normalized = variance / (special.chdtri(dof[ok], 0.5) / dof[ok])
-    return float(np.sqrt(np.median(normalized)))
+    # Windows of a record have a few lengths only: the quantile once for each.
+    lengths, which = np.unique(dof[ok], return_inverse=True)
+    normalized = variance / (special.chdtri(lengths, 0.5)[which] / dof[ok])
+    return float(np.sqrt(_median(normalized)))
 
 
 def _clipped(fit, signs):
     """Crests flattened at the record's extreme level (saturation)."""
     clipped = np.zeros(signs.size, dtype=bool)
+    if fit.at_max.max(initial=0) < 2 and fit.at_min.max(initial=0) < 2:
+        return clipped  # the usual case: no window has two samples at either level
     for count in (np.where(signs > 0, fit.at_max, 0), np.where(signs < 0, fit.at_min, 0)):
         hits = count >= 2
         if np.count_nonzero(hits) >= 2 or np.any(count >= 3):
@@ -199,12 +255,13 @@ def _local_half_periods(centres, period, valid):
     index = np.flatnonzero(valid)
     if index.size < 2:
         return np.full(centres.size, nominal)
-    spacing = np.diff(centres[index]) / np.maximum(np.diff(index), 1)
+    at = centres[index]
+    spacing = (at[1:] - at[:-1]) / np.maximum(index[1:] - index[:-1], 1)
     low, high = (2 * fraction * nominal for fraction in HALF_CYCLE_SPACING)
     spacing = np.where((spacing > low) & (spacing < high), spacing, nominal)
     if spacing.size >= 5:  # the spacing of noisy crests scatters: smooth it over 5 crests
         spacing = _running_median(spacing, 5)
-    middle = 0.5 * (centres[index][1:] + centres[index][:-1])
+    middle = 0.5 * (at[1:] + at[:-1])
     if middle.size == 1:
         return np.full(centres.size, spacing[0])
     return np.interp(centres, middle, spacing)
@@ -216,16 +273,19 @@ def _local_decay_rates(centres, y, omega, valid):
     follow a decay rate that changes within the half-cycle (low Q with fluid or Coulomb
     damping), which would otherwise bias the amplitudes."""
     index = np.flatnonzero(valid & (y > 0))
+    rows = np.zeros((2, centres.size))
     if index.size < 3:
-        return np.zeros((2, centres.size))
+        return rows
+    at = centres[index]
     log_y = np.log(y[index])
-    rate = -np.diff(log_y) / np.diff(centres[index])
+    rate = (log_y[:-1] - log_y[1:]) / (at[1:] - at[:-1])
     if rate.size >= 7:
         rate = _running_median(rate, 7)
-    middle = 0.5 * (centres[index][1:] + centres[index][:-1])
-    gamma = np.clip(_interpolate_extending_ends(centres, middle, rate), -0.3 * omega,
-                    0.3 * omega)
-    slope = np.zeros(centres.size)
+    middle = 0.5 * (at[1:] + at[:-1])
+    bound = 0.3 * omega
+    gamma = np.minimum(np.maximum(_interpolate_extending_ends(centres, middle, rate), -bound),
+                       bound)
+    rows[0] = gamma
     if rate.size >= 7:
         slope = _interpolate_extending_ends(
             centres, middle[1:-1], (rate[2:] - rate[:-2]) / (middle[2:] - middle[:-2]))
@@ -233,8 +293,8 @@ def _local_decay_rates(centres, y, omega, valid):
         # -k*y**n): twice that bounds a slope from noisy or gapped rates, which could
         # otherwise bend a window's envelope by 10 %.
         limit = np.minimum(2.0 * gamma**2, 0.1 * omega**2)
-        slope = np.clip(_running_median(slope, 7), -limit, limit)
-    return np.vstack([gamma, slope])
+        rows[1] = np.minimum(np.maximum(_running_median(slope, 7), -limit), limit)
+    return rows
 
 
 def _interpolate_extending_ends(x, xp, fp):
@@ -245,7 +305,7 @@ def _interpolate_extending_ends(x, xp, fp):
     values = np.interp(x, xp, fp)
     if xp.size >= 3:
         for outside, ends in ((x < xp[0], slice(0, 3)), (x > xp[-1], slice(-3, None))):
-            if np.any(outside):
+            if outside.any():
                 values[outside] = _parabola(x[outside], xp[ends], fp[ends])
     elif xp.size == 2:
         slope = (fp[1] - fp[0]) / (xp[1] - xp[0])
@@ -256,10 +316,14 @@ def _interpolate_extending_ends(x, xp, fp):
 
 def _parabola(x, xp, fp):
     """The quadratic through three points (xp, fp), evaluated at x (Lagrange form)."""
-    (x0, x1, x2), (f0, f1, f2) = xp, fp
-    return (f0 * (x - x1) * (x - x2) / ((x0 - x1) * (x0 - x2))
-            + f1 * (x - x0) * (x - x2) / ((x1 - x0) * (x1 - x2))
-            + f2 * (x - x0) * (x - x1) / ((x2 - x0) * (x2 - x1)))
+    (x0, x1, x2), (f0, f1, f2) = xp.tolist(), fp.tolist()
+    d0, d1, d2 = (x0 - x1) * (x0 - x2), (x1 - x0) * (x1 - x2), (x2 - x0) * (x2 - x1)
+    if x.size > 8:
+        return (f0 * (x - x1) * (x - x2) / d0 + f1 * (x - x0) * (x - x2) / d1
+                + f2 * (x - x0) * (x - x1) / d2)
+    # Usually one or two crests past the ends: plain floats, the same operations.
+    return np.array([f0 * (v - x1) * (v - x2) / d0 + f1 * (v - x0) * (v - x2) / d1
+                     + f2 * (v - x0) * (v - x1) / d2 for v in x.tolist()])
 
 
 def _decay_rates_at(crests, centres, magnitude, omega, reliable):

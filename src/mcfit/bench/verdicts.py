@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcfit import decay
+from mcfit.bounds import amplitude_crlb
 
 __all__ = ["VerdictScene", "VerdictRow", "VERDICT_SCENES", "run_verdicts", "format_verdicts"]
 
@@ -40,10 +41,10 @@ class VerdictScene:
 
 
 def _fluid_at(standard_errors, b, duration, noise):
-    """The fluid coefficient that is ``standard_errors`` of its Cramer-Rao bound beside b."""
+    """The fluid coefficient that is ``standard_errors`` of its Cramer-Rao bound beside b
+    (amplitudes every half period of 1 s, y0 and a and b free)."""
     t = np.arange(0.0, duration, 0.5)
-    jacobian = decay.amplitude_jacobian(t, 1.0, 0.0, b, 0.0)[:, :3]
-    return standard_errors * noise * math.sqrt(np.linalg.inv(jacobian.T @ jacobian)[1, 1])
+    return standard_errors * amplitude_crlb(t, 1.0, 0.0, b, 0.0, noise, "ab")["a"]
 
 
 VERDICT_SCENES = (

@@ -1,0 +1,337 @@
+"""The report figure: every panel for every sample and every run of a multi-run file, with
+titles, units, ranges and legends checked on the drawn figure (Agg, no display)."""
+
+import math
+import struct
+from dataclasses import replace
+from pathlib import Path
+
+import matplotlib
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+matplotlib.use("Agg")
+
+from matplotlib.backends.backend_agg import FigureCanvasAgg  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+
+import mcfit  # noqa: E402
+from mcfit import decay  # noqa: E402
+from mcfit.analysis import analyse_record  # noqa: E402
+from mcfit.cli import cli  # noqa: E402
+from mcfit.options import DEFAULT_PANELS, PANELS  # noqa: E402
+from mcfit.plots import record_view, report_figure  # noqa: E402
+from mcfit.plots.binning import binned_medians, binned_rates, full_periods  # noqa: E402
+from mcfit.records import read_records  # noqa: E402
+
+ROOT = Path(__file__).parents[1]
+SAMPLES = sorted(p for p in (ROOT / "sample_data").iterdir() if p.suffix in (".csv", ".xlsx"))
+REALDATA = ROOT.parent / "shared" / "realdata"
+
+TITLES = {"record and turning points": "record",
+          "amplitudes: selected fit against single-regime fits": "amplitude",
+          "quality factor Q and its parts": "q", "damping rate against amplitude": "rate",
+          "quality factor against amplitude": "qamp",
+          "period against amplitude (backbone)": "backbone"}
+
+
+def _analyses():
+    """(id, analysis) of every record of every sample, each run of a multi-run file apart."""
+    found = []
+    for path in SAMPLES:
+        records = read_records(str(path))
+        # Of a multi-run file, the first and the last run (the others are drawn alike).
+        for record in records[:1] + records[1:][-1:]:
+            analysis = analyse_record(record, method="turning-points")
+            found.append((f"{path.name}#{record.run}" if record.run else path.name, analysis))
+    return found
+
+
+ANALYSES = _analyses()
+
+
+def _panels(figure):
+    return {TITLES[a.get_title()]: a for a in figure.axes if a.get_title() in TITLES}
+
+
+@pytest.fixture(scope="module", params=ANALYSES, ids=[name for name, _ in ANALYSES])
+def drawn(request):
+    """(analysis, figure, {panel: axes}) with every panel (ranges are set when the panels
+    are; only the layout waits for a drawing)."""
+    _, analysis = request.param
+    figure = analysis.figure(panels=PANELS)
+    return analysis, figure, _panels(figure)
+
+
+def test_every_panel_is_drawn_and_the_title_is_the_file_name(drawn):
+    analysis, figure, panels = drawn
+    assert set(panels) == set(PANELS)
+    record = analysis.record
+    name = Path(record.source).name
+    assert figure.get_suptitle() == (f"{name}, {record.run}" if record.run else name)
+    assert "/" not in figure.get_suptitle()
+
+
+def test_axis_labels_and_the_parameter_box_carry_the_unit(drawn):
+    analysis, figure, panels = drawn
+    unit = analysis.record.signal_unit
+    label = panels["amplitude"].get_ylabel()
+    box = next(t.get_text() for a in figure.axes for t in a.texts
+               if "turning points, reduced chi-square" in t.get_text())
+    assert "column" not in label and "column" not in box
+    if unit is None:
+        assert label == "amplitude"
+        assert "U: the signal's unit" in box
+    else:
+        assert label == f"amplitude ({unit})"
+        assert panels["rate"].get_xlabel() == f"amplitude ({unit})"
+        coefficients = [line for line in box.splitlines() if line[:3] in ("a (", "c (")]
+        assert coefficients and all(unit in line for line in coefficients)
+        assert "U*" not in box and "(U/" not in box
+
+
+@pytest.mark.parametrize("name", ["fig20_19_all_three.csv", "capstone_runs.csv#Run 1",
+                                  "fig20_20_peak_speed_cycles.csv"])
+def test_legends_stand_outside_the_axes(name):
+    figure = dict(ANALYSES)[name].figure(panels=PANELS)
+    figure.set_dpi(40)  # the layout is in inches and points: a coarse raster is enough
+    canvas = FigureCanvasAgg(figure)
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    legends = 0
+    for axes in figure.axes:
+        legend = axes.get_legend()
+        if legend is None:
+            continue
+        legends += 1
+        box, frame = legend.get_window_extent(renderer), axes.get_window_extent(renderer)
+        assert box.x0 >= frame.x1 - 0.5, axes.get_title()
+    assert legends >= 5
+
+
+def test_listed_curves_are_on_scale(drawn):
+    """A curve named in a legend has points within the axes' range."""
+    _, _, panels = drawn
+    for name, axes in panels.items():
+        low, high = axes.get_ylim()
+        legend = axes.get_legend()
+        if legend is None:
+            continue
+        listed = {t.get_text() for t in legend.get_texts()}
+        for line in axes.get_lines():
+            if line.get_label() in listed and isinstance(line, Line2D):
+                y = np.asarray(line.get_ydata(), dtype=float)
+                assert np.any((y >= low) & (y <= high)), (name, line.get_label())
+
+
+def test_the_amplitude_range_is_the_datas_and_the_selected_fits(drawn):
+    analysis, _, panels = drawn
+    fit = analysis.fit
+    axes = panels["amplitude"]
+    low, high = axes.get_ylim()
+    sigma = np.where(np.isfinite(fit.sigma), fit.sigma, 0.0)
+    t = np.linspace(fit.t[0], fit.t[-1], 600)
+    shown = np.concatenate([fit.y - sigma, fit.y + sigma, fit.amplitude(t)])
+    if axes.get_yscale() == "log":
+        shown = shown[shown > 0]
+        assert low <= shown.min() and high >= shown.max()
+        # Not stretched: at most 30 % wider in decades than what must be shown.
+        assert math.log10(high / low) <= 1.3 * math.log10(shown.max() / shown.min()) + 0.05
+    else:
+        assert low <= shown.min() and high >= shown.max()
+        assert high - low <= 1.3 * (shown.max() - shown.min())
+
+
+def test_comparison_curves_do_not_stretch_the_axes():
+    """fig 20.19: the Coulomb-only fit plunges to 0 before the record ends; the axis still
+    spans only the data and the selected fit (about 1.8 decades, not 3)."""
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    figure = analysis.figure()
+    axes = next(a for a in figure.axes if a.get_title().startswith("amplitudes"))
+    low, high = axes.get_ylim()
+    assert low <= analysis.fit.y.min() and high >= analysis.fit.y.max()
+    assert math.log10(high / low) < 2.2  # the data span 1.8 decades
+    legend = {t.get_text() for t in axes.get_legend().get_texts()}
+    assert "Coulomb only (c)" in legend  # on scale over most of the record
+
+
+def test_the_default_panels_are_todays():
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    figure = analysis.figure()
+    titles = {TITLES[a.get_title()] for a in figure.axes if a.get_title() in TITLES}
+    assert titles == set(DEFAULT_PANELS) == {"record", "amplitude", "q", "rate"}
+
+
+def test_binned_medians_ignore_an_outlier_and_give_the_medians_error():
+    rng = np.random.default_rng(3)
+    x = rng.uniform(0.1, 1.0, 400)
+    y = 0.2 + rng.normal(0.0, 0.01, x.size)
+    y[17] = -4.8
+    bins = binned_medians(x, y, bins=5)
+    assert bins.count.sum() == 400 and np.all(bins.count == 80)
+    np.testing.assert_allclose(bins.y, 0.2, atol=4 * 0.0125 / math.sqrt(80))
+    # The standard error of a median is sqrt(pi/2) sigma/sqrt(n) for Gaussian scatter.
+    np.testing.assert_allclose(bins.error, math.sqrt(math.pi / 2) * 0.01 / math.sqrt(80),
+                               rtol=0.3)
+    # Each bin's x is the median amplitude of its fifth of the sorted amplitudes.
+    np.testing.assert_allclose(bins.x, [np.median(c) for c in np.array_split(np.sort(x), 5)])
+
+
+def test_binned_rates_are_robust_and_their_errors_are_the_scatters():
+    """Amplitudes exp(-0.2 t) with 1 % noise and one crest misread: every bin's rate is
+    0.2 within 4 of its errors, and over 200 records the errors match the rates' spread
+    (independent: the spread is measured, the errors are propagated from sigma)."""
+    rng = np.random.default_rng(7)
+    t = np.arange(80) * 0.5
+    estimates, errors = [], []
+    for _ in range(200):
+        y = np.exp(-0.2 * t) * (1 + rng.normal(0.0, 0.01, t.size))
+        bins = binned_rates(t, y, 0.01 * np.exp(-0.2 * t))
+        estimates.append(bins.y)
+        errors.append(bins.error)
+    estimates, errors = np.array(estimates), np.array(errors)
+    # sqrt(pi/2) is the median's large-sample factor; for the 4 slopes of a bin it is
+    # about 1.1: the errors may be up to 20 % large, never small.
+    ratio = errors.mean(axis=0) / estimates.std(axis=0)
+    assert np.all(ratio > 0.9) and np.all(ratio < 1.35)
+    y = np.exp(-0.2 * t)
+    y[30] *= 50.0
+    bins = binned_rates(t, y * (1 + rng.normal(0.0, 0.01, t.size)), 0.01 * y)
+    assert np.all(np.abs(bins.y - 0.2) <= 4 * bins.error)
+
+
+def test_the_rate_panel_shows_binned_medians_on_the_model():
+    """fig 20.19 (a, b, c known; reduced chi-square about 1): each bin's median damping rate
+    lies within 4 error bars of c/y + b + a*y at the bin's amplitude."""
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    axes = next(a for a in analysis.figure().axes if a.get_title().startswith("damping rate"))
+    container = next(c for c in axes.containers if c.get_label() == "median in amplitude bin")
+    x, y = (np.asarray(v) for v in container.lines[0].get_data())
+    errors = np.array([abs(s[1][1] - s[0][1]) / 2 for s in container.lines[2][0].get_segments()])
+    v = analysis.fit.values
+    model = decay.decay_rate(x, v["a"], v["b"], v["c"]) / x
+    assert x.size >= 5 and np.all(errors > 0)
+    assert np.all(np.abs(y - model) <= 4 * errors)
+
+
+def test_one_wild_rate_does_not_squash_the_rate_panel():
+    """A crest misread by a factor 100 gives a rate far off (about -4.8/s at fig 20.19's
+    scale); the panel keeps the bulk in view and says a point is off scale."""
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    fit = analysis.fit
+    y = fit.y.copy()
+    y[40] *= 60.0
+    spoiled = replace(analysis, fit=replace(fit, y=y))
+    axes = next(a for a in spoiled.figure().axes if a.get_title().startswith("damping rate"))
+    low, high = axes.get_ylim()
+    assert low > 0.05 and high < 0.6  # the true rates run from 0.15 to 0.45 per second
+    assert any("off scale" in t.get_text() for t in axes.texts)
+
+
+def test_full_periods_cancel_an_offset_equilibrium():
+    """Crests of period 2 s whose half-periods alternate 0.9 and 1.1 s (an offset
+    equilibrium) give periods of exactly 2 s; a skipped crest breaks the run."""
+    t = np.cumsum(np.r_[0.0, np.tile([0.9, 1.1], 10)])
+    y = np.linspace(1.0, 0.5, t.size)
+    amplitude, period = full_periods(t, y, 2.0)
+    np.testing.assert_allclose(period, 2.0, rtol=1e-12)
+    np.testing.assert_allclose(amplitude, y[1:-1])
+    gap = np.delete(t, 7)
+    assert full_periods(gap, np.delete(y, 7), 2.0)[1].size == t.size - 2 - 3
+
+
+def test_unit_title_panels_and_size_from_the_command_line(tmp_path):
+    path = tmp_path / "fig.png"
+    result = CliRunner().invoke(cli, [str(ROOT / "sample_data" / "fig20_19_all_three.csv"),
+                                      "--plot", str(path), "--unit", "mm", "--title",
+                                      "Fig. 20.19", "--panels", "amplitude,qamp",
+                                      "--figsize", "8,5"])
+    assert result.exit_code == 0, result.output
+    width, height = struct.unpack(">II", path.read_bytes()[16:24])
+    assert (width, height) == (880, 550)  # 110 dpi
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    figure = analysis.figure("Fig. 20.19", panels="amplitude,qamp", unit="mm")
+    assert figure.get_suptitle() == "Fig. 20.19"
+    labels = {a.get_title(): a.get_ylabel() for a in figure.axes}
+    assert labels["amplitudes: selected fit against single-regime fits"] == "amplitude (mm)"
+    box = next(t.get_text() for a in figure.axes for t in a.texts if "a (" in t.get_text())
+    assert "a (1/(mm*s))" in box and "c (mm/s)" in box
+
+
+@pytest.mark.parametrize("arguments, message", [
+    (["--panels", "amplitude,bogus"], "--panels"),
+    (["--panels", "q,q"], "--panels"),
+    (["--figsize", "8"], "--figsize"),
+    (["--figsize", "0,5"], "--figsize"),
+])
+def test_bad_figure_options_are_usage_errors(tmp_path, arguments, message):
+    result = CliRunner().invoke(cli, [str(ROOT / "sample_data" / "fig20_19_all_three.csv"),
+                                      "--plot", str(tmp_path / "f.png"), *arguments])
+    assert result.exit_code == 2 and message in result.output
+    assert not (tmp_path / "f.png").exists()
+
+
+def test_figure_options_need_a_figure():
+    result = CliRunner().invoke(cli, [str(ROOT / "sample_data" / "fig20_19_all_three.csv"),
+                                      "--unit", "mm"])
+    assert result.exit_code == 2 and "--unit" in result.output and "--plot" in result.output
+
+
+def test_a_multi_run_file_gives_one_titled_figure_per_run(tmp_path):
+    result = CliRunner().invoke(cli, [str(ROOT / "sample_data" / "capstone_runs.csv"),
+                                      "--plot", str(tmp_path / "runs.png"), "--panels",
+                                      "backbone", "--title", "Capstone", "--figsize", "8,4",
+                                      "--method", "turning-points"])
+    assert result.exit_code == 0, result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"runs-run{n}.png"
+                                                           for n in range(1, 6)]
+
+
+@pytest.mark.skipif(not (REALDATA / "pendulum_cup").is_dir(), reason="no real records")
+def test_a_pendulum_fit_draws_its_period_law():
+    """The large-swing pendulum (83 degrees): the backbone's curve is T0*2K(k)/pi and the
+    measured periods lengthen with amplitude as it does (within their error bars x 4)."""
+    from mcfit.fit.pendulum import period_ratio
+
+    analysis = mcfit.analyse_file(str(REALDATA / "pendulum_cup" / "trial1_rawdata.txt"),
+                                  signal_col=2, pendulum=True)
+    view = record_view(analysis)
+    assert view.unit == "rad"
+    axes = next(a for a in report_figure(view, analysis.fit, panels=["backbone"]).axes
+                if a.get_title().startswith("period"))
+    law = next(line for line in axes.get_lines() if line.get_label().startswith("pendulum"))
+    x, y = (np.asarray(v) for v in law.get_data())
+    np.testing.assert_allclose(y, analysis.fit.small_angle_period * period_ratio(x))
+    bins = next(c for c in axes.containers if c.get_label() == "median in amplitude bin")
+    bx, by = (np.asarray(v) for v in bins.lines[0].get_data())
+    errors = np.array([abs(s[1][1] - s[0][1]) / 2 for s in bins.lines[2][0].get_segments()])
+    expected = analysis.fit.small_angle_period * period_ratio(bx)
+    assert np.all(np.abs(by - expected) <= 4 * errors + 2e-3)
+
+
+@pytest.mark.parametrize("model", ["power", "none", "b"])
+def test_every_panel_draws_for_a_forced_model(model):
+    """A power law, no damping and a single regime: every panel is drawn and the ranges
+    are finite (no parts of Q where one term is the total)."""
+    analysis = mcfit.analyse_file(str(ROOT / "sample_data" / "fig20_21_soup_can.csv"),
+                                  model=model, method="turning-points")
+    panels = _panels(analysis.figure(panels=PANELS))
+    assert set(panels) == set(PANELS)
+    for axes in panels.values():
+        assert all(math.isfinite(v) for v in axes.get_ylim())
+    if model == "b":
+        legend = {t.get_text() for t in panels["q"].get_legend().get_texts()}
+        assert not any(label.startswith("Q hysteretic") for label in legend)
+
+
+def test_curves_differ_in_dash_pattern_not_colour_alone():
+    """Printed in grey, the selected fit and the single-regime fits, and the parts of Q,
+    stay apart by their dash patterns."""
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    panels = _panels(analysis.figure())
+    for name in ("amplitude", "q"):
+        lines = [line for line in panels[name].get_lines()
+                 if not line.get_label().startswith("_") and line.get_linestyle() != "None"]
+        dashes = [(line.get_linestyle(), str(line._unscaled_dash_pattern)) for line in lines]
+        assert len(lines) >= 4 and len(set(dashes)) == len(lines), name
