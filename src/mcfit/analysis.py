@@ -9,6 +9,7 @@ import numpy as np
 
 from mcfit.errors import FitError, McfitError, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
+from mcfit.fit.decay_fit import fit_model_values
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
@@ -114,9 +115,7 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     ``bootstrap`` and ``rng`` are not available there). Without it, a fluid term found in a
     record whose period grows with amplitude as a pendulum's does gets a warning."""
     used = turning.used
-    sigma = turning.sigma[used]
-    if not np.all(np.isfinite(sigma)) or np.any(sigma <= 0):
-        sigma = None
+    sigma = _sigma_of_used(turning)
     period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
     period_sigma = turning.period_sigma if math.isfinite(turning.period_sigma) else None
     if pendulum:
@@ -124,6 +123,20 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
                     period_sigma=period_sigma, domain=turning.domain, **options)
     return with_large_swing_warning(fit, turning, degrees)
+
+
+def fitted_values(turning: TurningPoints, model) -> dict:
+    """The values of ``model`` fitted to the used turning points, and nothing else
+    (:func:`mcfit.fit.decay_fit.fit_model_values`)."""
+    used = turning.used
+    return fit_model_values(turning.t[used], turning.y[used], _sigma_of_used(turning),
+                            model=model)
+
+
+def _sigma_of_used(turning):
+    """The used turning points' uncertainties, or None unless each is finite and > 0."""
+    sigma = turning.sigma[turning.used]
+    return sigma if np.all(np.isfinite(sigma)) and np.all(sigma > 0) else None
 
 
 def with_large_swing_warning(fit, turning: TurningPoints, degrees=False):

@@ -77,7 +77,7 @@ def _smallest_rate_q(fit):
 
 
 def _chain_bias(t, turning, fit, noise_stderr):
-    from mcfit.analysis import fit_turning_points  # noqa: PLC0415 (import cycle)
+    from mcfit.analysis import fitted_values  # noqa: PLC0415 (import cycle)
     from mcfit.errors import McfitError
     from mcfit.turning import find_turning_points
 
@@ -90,7 +90,7 @@ def _chain_bias(t, turning, fit, noise_stderr):
     x = equilibrium + phase_plane_motion(times - t0, v["y0"], theta0, fit.omega, v["a"],
                                          v["b"], v["c"])[0]
     try:
-        again = fit_turning_points(find_turning_points(times, x), model=fit.model)
+        again = fitted_values(find_turning_points(times, x), fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
-    return {k: (again.values[k] - v[k]) / noise_stderr[k] for k in fit.selection.terms}
+    return {k: (again[k] - v[k]) / noise_stderr[k] for k in fit.selection.terms}

@@ -1539,17 +1539,19 @@ def _shown(value):
 
 def _timestamp_problem(t):
     """Describe unusable logger timestamps (repeats or bursts), or None."""
-    finite = t[np.isfinite(t)]
+    # Copies of a long record's times are avoided: they set the reader's peak memory.
+    finite = t if np.isfinite(t).all() else t[np.isfinite(t)]
     if finite.size < 4:
         return None
     steps = np.diff(finite)
-    repeats = np.count_nonzero(steps == 0)
-    if repeats > 0 and np.all(steps >= 0):
-        return (f"{repeats} of {steps.size} time steps repeat the previous timestamp "
-                "(the logger stamps samples in bursts)")
-    positive = steps[steps > 0]
-    if positive.size >= 4 and np.all(steps > 0):
-        median = np.median(positive)
+    if not np.all(steps > 0):
+        repeats = np.count_nonzero(steps == 0)
+        if repeats > 0 and np.all(steps >= 0):
+            return (f"{repeats} of {steps.size} time steps repeat the previous timestamp "
+                    "(the logger stamps samples in bursts)")
+        return None
+    if steps.size >= 4:
+        median = np.median(steps)
         long_steps = np.count_nonzero(steps > 4 * median)
         if long_steps >= 3 and long_steps >= 0.05 * steps.size:
             return (f"time steps come in bursts ({long_steps} of {steps.size} steps are more "
@@ -1570,8 +1572,7 @@ def _repair_times(table, time_index, t, x, notes):
     by one step) keeps its uneven times; a few repeated or backward timestamps are set to
     the middle of their neighbours, or dropped. Each repair adds a note.
     """
-    steps = np.diff(t)
-    if steps.size < 3 or (np.all(steps > 0) and _timestamp_problem(t) is None):
+    if t.size < 4 or (np.all(np.diff(t) > 0) and _timestamp_problem(t) is None):
         return t, x, False
     label = _describe(table, time_index)
     rebuilt = _unrounded_times(table, time_index, t)
@@ -1803,6 +1804,11 @@ def _swing_angle(table, x, y_index, notes):
     return angle
 
 
+def _end_of(present):
+    """One past the last True of ``present`` (which holds one), without an index array."""
+    return present.size - int(np.argmax(present[::-1]))
+
+
 def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
                   angle_from=None):
     run = run or _Run(None, 1, tuple(range(len(table.names))))
@@ -1837,13 +1843,12 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
 
     # Side-by-side runs: shorter runs are padded with empty cells at the end.
     present = np.isfinite(x) if t is None else np.isfinite(t)
-    last = np.flatnonzero(present)
-    if last.size == 0:
+    if not present.any():
         what = "signal" if t is None else "time"
         column = signal_index if t is None else time_index
         raise InputError(f"the {what} column {_describe(table, column)} of {name} holds no "
                          "numbers. Choose another column with `time_col` or `signal_col`.")
-    end = last[-1] + 1
+    end = _end_of(present)
     if end < x.size:
         notes.append(f"{x.size - end} empty trailing rows dropped (padding)")
         x = x[:end]
@@ -1853,15 +1858,17 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         if missing_t.any():
             notes.append(f"{int(missing_t.sum())} rows without a time value dropped")
             t, x = t[~missing_t], x[~missing_t]
-    if not np.isfinite(x).any():
+    finite = np.isfinite(x)
+    if not finite.any():
         raise InputError(f"the signal column {_describe(table, signal_index)} of {name} holds "
                          "no numbers (all empty or NaN). Choose the signal with `signal_col`.")
-    finite_x = x[np.isfinite(x)]
-    if np.ptp(finite_x) == 0:
+    first = x[np.argmax(finite)]
+    if np.all(np.where(finite, x, first) == first):
         raise InputError(f"the signal column {_describe(table, signal_index)} of {name} is "
-                         f"constant ({finite_x[0]:g}). Choose the signal with `signal_col`.")
+                         f"constant ({first:g}). Choose the signal with `signal_col`.")
     # Trailing NaN in the signal alone (a shorter run sharing the time column).
-    last_x = np.flatnonzero(np.isfinite(x))[-1] + 1
+    last_x = _end_of(finite)
+    del finite
     if last_x < x.size:
         notes.append(f"{x.size - last_x} trailing rows without a signal value dropped")
         x = x[:last_x]
@@ -1906,10 +1913,9 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
             notes.append("turning points sorted by time")
     else:
         t, x, event_driven = _repair_times(table, time_index, t, x, notes)
-        steps = np.diff(t)
-        if not np.all(steps > 0):
+        if not np.all(np.diff(t) > 0):
             problem = _timestamp_problem(t)
-            where = int(np.flatnonzero(~(steps > 0))[0]) + 1
+            where = int(np.flatnonzero(~(np.diff(t) > 0))[0]) + 1
             if problem:
                 raise InputError(f"the time column {_describe(table, time_index)} of {name} is "
                                  f"unusable: {problem}. Give the sample rate with `rate=HZ`.")

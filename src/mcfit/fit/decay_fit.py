@@ -153,6 +153,16 @@ def fit_decay(t, y, sigma=None, *, period=None, period_sigma=None, domain="time"
     return fit
 
 
+def fit_model_values(t, y, sigma=None, *, model) -> dict:
+    """The values (y0, a, b, c) of ``model`` fitted to turning points as :func:`fit_decay`
+    ranks it, without the choice of model, the errors or lmfit's report: for predictions
+    that need the values only (the report starts from them and stays within its
+    tolerance). Raises :class:`FitError` as :func:`fit_decay` does."""
+    t, y, sigma, _ = _checked(t, y, sigma)
+    model = parse_model(model)
+    return fit_candidates(ScaledRecord(t, y, sigma), (model,))[model].values
+
+
 @dataclass(frozen=True)
 class _Record:
     """The turning points as given and in internal units, with the frequency."""
