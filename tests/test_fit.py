@@ -334,3 +334,17 @@ def test_sigma_from_the_residuals_is_the_noise_they_show(rng):
     result = fit_decay(t, noisy, period=1.0)
     assert result.noise_from_residuals
     assert np.all(result.sigma == pytest.approx(2e-3, rel=0.25))
+
+
+@pytest.mark.parametrize("model", ["b", "bc", "abc"])
+def test_the_values_alone_are_those_of_the_reported_fit(rng, model):
+    """fit_model_values (the bias prediction's refit) gives the forced fit's values."""
+    from mcfit.fit.decay_fit import fit_model_values
+
+    t, y = _turning_points(4.0, 0.1, 0.1, 0.01, 0.5, 20.0)
+    sigma = np.full(y.size, 1e-3)
+    noisy = y + rng.normal(0.0, 1e-3, y.size)
+    reported = fit_decay(t, noisy, sigma, period=0.5, model=model)
+    values = fit_model_values(t, noisy, sigma, model=model)
+    for k in ("y0",) + tuple(model):
+        assert abs(values[k] - reported.values[k]) < 1e-4 * reported.stderr[k]
