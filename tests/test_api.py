@@ -180,3 +180,24 @@ def test_the_cramer_rao_bounds_against_the_fisher_matrix_by_hand():
     by_hand = math.sqrt(np.linalg.inv(design.T @ design)[1, 1])
     assert mcfit.waveform_crlb(t, y0, 0.0, b, 0.0, 1.0, sigma, "b")["b"] == pytest.approx(
         by_hand, rel=1e-9)
+
+
+def test_bad_values_are_refused_by_the_shared_checks(tmp_path):
+    from mcfit.analysis import fit_turning_points
+    from mcfit.options import check_plot_name, parse_figsize
+    from mcfit.turning import find_turning_points
+
+    path = tmp_path / "record.csv"
+    record = mcfit.simulate_record(0.0, 0.05, 0.0, 1.0, 1.0, 10.0, 100.0)
+    path.write_text("t,x\n" + "".join(f"{t!r},{x!r}\n" for t, x in zip(*record)))
+    for rate in (-5, "x"):
+        with pytest.raises(UsageError, match="`rate` must be a"):
+            mcfit.analyse_files([str(path)], rate=rate)  # once, not a row a file
+    with pytest.raises(UsageError, match="`bootstrap` is not available with `pendulum`"):
+        fit_turning_points(find_turning_points(*record), pendulum=True, bootstrap=5)
+    with pytest.raises(UsageError, match="`figsize` 12"):
+        parse_figsize(12)
+    for name in (".png", "figure.gif", "figure"):
+        with pytest.raises(UsageError, match="must end in .png, .pdf or .svg"):
+            check_plot_name(name)
+    check_plot_name("plots/figure.PDF")

@@ -74,7 +74,7 @@ class Analysis:
 
         self._check_fitted()
         return report_figure(record_view(self, title, unit), self.fit,
-                             panels or DEFAULT_PANELS, figsize)
+                             DEFAULT_PANELS if panels is None else panels, figsize)
 
     def plot(self, ax=None, *, unit=None):
         """The record, its turning points and the fitted envelope on ``ax`` (a new figure's
@@ -114,6 +114,7 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     ``degrees``) and the pendulum's law is fitted (:func:`mcfit.fit.pendulum.fit_pendulum`;
     ``bootstrap`` and ``rng`` are not available there). Without it, a fluid term found in a
     record whose period grows with amplitude as a pendulum's does gets a warning."""
+    check_fit_options(pendulum=pendulum, bootstrap=options.get("bootstrap", 0))
     used = turning.used
     sigma = _sigma_of_used(turning)
     period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
@@ -158,6 +159,8 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
 
     from mcfit.fit.waveform import fit_waveform, viscous_aicc
     from mcfit.model_error import LIMIT, averaged_law_bias
+
+    check_fit_options(method=method)
 
     usable = (record.kind == "waveform" and fit.domain == "time" and fit.model != "power"
               and fit.omega is not None)

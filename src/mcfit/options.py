@@ -10,6 +10,8 @@ reads that as it is; the command line turns it into ``--signal-col`` and ``--rat
 
 from __future__ import annotations
 
+import math
+import os
 import re
 
 from mcfit.errors import UsageError
@@ -86,6 +88,8 @@ def check_read_options(*, kind=None, domain=None, rate=None, time_col=None, sign
     """Refuse reading options that are unknown or contradict each other."""
     _check_choice("kind", kind, KINDS)
     _check_choice("domain", domain, DOMAINS)
+    if rate is not None:
+        _check_rate(rate)
     if rate is not None and time_col is not None:
         raise UsageError("give either `time_col` or `rate` (time from the sample index), "
                          "not both.", option="rate")
@@ -95,6 +99,17 @@ def check_read_options(*, kind=None, domain=None, rate=None, time_col=None, sign
     if angle_from is not None and len(angle_from) != 2:
         raise UsageError("`angle_from` takes two columns, the bob's x and y.",
                          option="angle_from")
+
+
+def _check_rate(rate):
+    try:
+        rate = float(rate)
+    except (TypeError, ValueError):
+        raise UsageError(f"`rate` must be a number of samples per second, not {rate!r}.",
+                         option="rate") from None
+    if not (math.isfinite(rate) and rate > 0):
+        raise UsageError(f"`rate` must be a positive number of samples per second, not "
+                         f"{rate:g}.", option="rate")
 
 
 def check_fit_options(*, criterion="aicc", model=None, bootstrap=0, method="auto",
@@ -135,8 +150,8 @@ def parse_panels(panels) -> tuple:
 def parse_figsize(size) -> tuple:
     """(width, height) in inches from two numbers or ``"W,H"``; both must be > 0 and
     at most 100. :class:`mcfit.errors.UsageError` (``option="figsize"``) otherwise."""
-    parts = size.split(",") if isinstance(size, str) else list(size)
     try:
+        parts = size.split(",") if isinstance(size, str) else list(size)
         width, height = (float(part) for part in parts)
     except (TypeError, ValueError):
         width = height = float("nan")
@@ -148,6 +163,7 @@ def parse_figsize(size) -> tuple:
 
 def check_plot_name(path) -> None:
     """Refuse a figure file name whose suffix is not a format we write."""
-    if not str(path).lower().endswith(PLOT_SUFFIXES):
+    stem, suffix = os.path.splitext(os.path.basename(str(path)))
+    if not stem or suffix.lower() not in PLOT_SUFFIXES:
         raise UsageError(f"plot file {path}: the name must end in .png, .pdf or .svg.",
                          option="plot")

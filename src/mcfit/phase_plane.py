@@ -236,7 +236,8 @@ def _fits_at_once(count, sets):
     """Whether ``count`` half-cycles of ``sets`` parameter sets are solved at once within
     _MAX_GRID values an array; more (a long record, or a solver's trial frequency far
     off) go one half-cycle after the other, in bounded memory."""
-    return bool(np.isfinite(count) and count * sets * FINE <= _MAX_GRID)
+    per_half_cycle = max(FINE, NODES * NODES)  # the Newton Jacobian's blocks are largest
+    return bool(np.isfinite(count) and count * sets * per_half_cycle <= _MAX_GRID)
 
 
 def _grid(count, phi0):

@@ -142,16 +142,8 @@ def read_records(source, *, time_col=None, signal_col=None, sheet=None, rate=Non
 
 
 def _checked_rate(rate):
-    """The sample rate as a float (or None), refusing what is not a positive number."""
-    if rate is None:
-        return None
-    try:
-        rate = float(rate)
-    except (TypeError, ValueError):
-        raise UsageError(f"rate must be a number of samples per second, not {rate!r}.")
-    if not np.isfinite(rate) or rate <= 0:
-        raise UsageError(f"rate must be a positive number of samples per second, not {rate}.")
-    return rate
+    """The sample rate as a float, or None (checked by :func:`check_read_options`)."""
+    return None if rate is None else float(rate)
 
 
 # --------------------------------------------------------------------------- opening
@@ -1862,10 +1854,11 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
     if not finite.any():
         raise InputError(f"the signal column {_describe(table, signal_index)} of {name} holds "
                          "no numbers (all empty or NaN). Choose the signal with `signal_col`.")
-    first = x[np.argmax(finite)]
-    if np.all(np.where(finite, x, first) == first):
+    values = x if finite.all() else x[finite]  # copied only where there are gaps
+    if values.min() == values.max():
         raise InputError(f"the signal column {_describe(table, signal_index)} of {name} is "
-                         f"constant ({first:g}). Choose the signal with `signal_col`.")
+                         f"constant ({values[0]:g}). Choose the signal with `signal_col`.")
+    del values
     # Trailing NaN in the signal alone (a shorter run sharing the time column).
     last_x = _end_of(finite)
     del finite
