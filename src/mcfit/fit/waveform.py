@@ -18,6 +18,7 @@ from dataclasses import replace
 import lmfit
 import numpy as np
 from scipy import optimize
+from scipy.stats import median_abs_deviation  # lmfit imports scipy.stats anyway
 
 from mcfit import decay
 from mcfit.fit import uncertainty
@@ -171,7 +172,7 @@ def sample_noise(x):
     the noise 924**0.5 times its own). Residuals in these units make chi-square about one
     per sample."""
     sixth = np.diff(x, 6)
-    scale = 1.4826 * float(np.median(np.abs(sixth - np.median(sixth)))) / math.sqrt(924.0)
+    scale = float(median_abs_deviation(sixth, scale="normal")) / math.sqrt(924.0)
     return scale if scale > 0 else float(np.std(x)) or 1.0
 
 

@@ -1,5 +1,5 @@
 """Measured points for the panels against amplitude: damping rates, Q and periods from the
-turning points, and their medians in amplitude bins (numpy only)."""
+turning points, and their medians in amplitude bins (numpy and scipy)."""
 
 from __future__ import annotations
 
@@ -7,13 +7,14 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.stats import median_abs_deviation
+
+from mcfit.turning.common import HALF_CYCLE_SPACING
 
 __all__ = ["Binned", "binned_medians", "binned_rates", "pair_rates", "full_periods"]
 
 # sqrt(pi/2): the standard error of a median over that of a mean, for Gaussian scatter.
 _MEDIAN_EFFICIENCY = math.sqrt(math.pi / 2)
-# MAD -> standard deviation for Gaussian scatter.
-_MAD_TO_SIGMA = 1.4826
 _FEWEST_FOR_BINS = 6
 
 
@@ -51,7 +52,7 @@ def binned_medians(x, y, bins=None) -> Binned:
     for group in np.array_split(np.argsort(x, kind="stable"), bins or _bin_count(x.size)):
         values = y[group]
         centre = float(np.median(values))
-        spread = _MAD_TO_SIGMA * float(np.median(np.abs(values - centre)))
+        spread = float(median_abs_deviation(values, scale="normal"))
         if spread == 0 and values.size > 1:  # coarse steps (frame times): most values tie
             spread = float(np.std(values, ddof=1))
         mid.append(float(np.median(x[group])))
@@ -128,7 +129,8 @@ def full_periods(t, y, period):
     t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
     if t.size < 3 or not (math.isfinite(period) and period > 0):
         return np.empty(0), np.empty(0)
-    half = np.diff(t) / (0.5 * period)
-    regular = (half > 0.6) & (half < 1.4)
+    low, high = HALF_CYCLE_SPACING
+    spacing = np.diff(t) / period
+    regular = (spacing > low) & (spacing < high)
     keep = regular[:-1] & regular[1:]
     return y[1:-1][keep], (t[2:] - t[:-2])[keep]
