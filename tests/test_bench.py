@@ -89,7 +89,8 @@ def test_every_section_runs_and_writes_the_plots(tmp_path):
     for row in stages:  # turning points + fit = TP + fit > 0, and records/s its inverse
         _, turning, fitting, total, rate = map(float, row[1:])
         assert total == pytest.approx(turning + fitting, abs=0.11) and total > 0
-        assert rate == pytest.approx(1e3 / total, rel=0.1)
+        # The total is printed to 0.1 ms, the rate from the unrounded total.
+        assert 1e3 / (total + 0.05) * 0.999 <= rate <= 1e3 / max(total - 0.05, 1e-9) * 1.001
     where = throughput.split("--method auto on the ", 1)[1]
     fitted = int(where.split()[0])
     kept = int(re.search(r"\): (\d+) kept", where).group(1))

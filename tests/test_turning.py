@@ -11,6 +11,7 @@ import pytest
 from mcfit.decay import amplitude
 from mcfit.errors import RecordError
 from mcfit.turning import find_turning_points, turning_points_from_table
+from mcfit.turning.windows import _window_sums
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 # y0, a, b, c: all three regimes present, Q of order 50 to 200.
@@ -249,6 +250,42 @@ def test_the_sigma_of_a_cut_window_includes_its_phase_error():
                  / points.sigma[last])
     assert np.sqrt(np.mean(np.square(z))) < 1.5
     assert np.max(np.abs(z)) < 3.5
+
+
+def test_window_sums_are_each_windows_sums_by_hand(rng):
+    """The sums of every window at once (one complex exponential for the envelope, cos and
+    sin) against each window's sums written out, on uneven times with an empty window."""
+    t = np.cumsum(rng.uniform(0.5, 1.5, 400)) * 0.01
+    x = rng.normal(0.0, 1.0, t.size)
+    lo, hi = np.array([3, 60, 60, 150, 290]), np.array([50, 60, 140, 260, 400])
+    centres = 0.5 * (t[lo] + t[hi - 1])
+    omega = rng.uniform(5.0, 9.0, lo.size)
+    gamma = rng.uniform(-0.5, 0.5, (2, lo.size))
+    line = (0.2, -0.03, 1.0)
+    sums = _window_sums(t, x, lo, hi, centres, omega, gamma, line)
+    for k in range(lo.size):
+        s = t[lo[k]:hi[k]] - centres[k]
+        envelope = np.exp(-gamma[0, k] * s - 0.5 * gamma[1, k] * s**2)
+        u1, u2 = envelope * np.cos(omega[k] * s), envelope * np.sin(omega[k] * s)
+        r = x[lo[k]:hi[k]] - line[0] - line[1] * (t[lo[k]:hi[k]] - line[2])
+        by_hand = [np.sum(v) for v in (u1 * u1, u1 * u2, u2 * u2, u1 * r, u2 * r, u1, u2,
+                                        r * r)]
+        np.testing.assert_allclose(sums[:, k], by_hand, rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize("given", ["noise", "period and noise"])
+def test_a_known_period_and_noise_give_the_same_turning_points(given, rng):
+    """The record's own period and noise, given, stand in for the spectrum's (which is
+    then not computed when both are given): the same crests and amplitudes."""
+    t, x = waveform(50, noise=0.01, rng=rng)
+    found = find_turning_points(t, x)
+    known = {"noise": found.noise_sigma}
+    if given == "period and noise":
+        known["period"] = found.period
+    again = find_turning_points(t, x, **known)
+    assert np.array_equal(again.used, found.used)
+    np.testing.assert_allclose(again.t, found.t, atol=1e-3 * found.period)
+    assert np.max(np.abs(again.y - found.y) / found.sigma) < 0.05
 
 
 def test_period_drift_with_amplitude():

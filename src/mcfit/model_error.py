@@ -90,7 +90,10 @@ def _chain_bias(t, turning, fit, noise_stderr):
     x = equilibrium + phase_plane_motion(times - t0, v["y0"], theta0, fit.omega, v["a"],
                                          v["b"], v["c"])[0]
     try:
-        again = fitted_values(find_turning_points(times, x), fit.model)
+        # Found as the record's were: the record's period and noise, so that the search
+        # stops refining where the record's did (a clean waveform never settles in noise).
+        found = find_turning_points(times, x, period=turning.period, noise=turning.noise_sigma)
+        again = fitted_values(found, fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
     return {k: (again[k] - v[k]) / noise_stderr[k] for k in fit.selection.terms}

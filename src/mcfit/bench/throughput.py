@@ -15,7 +15,9 @@ figure, then the measurements behind them.
   rows, against the file's size (only with ``config.big_samples``; the quick grid skips it).
 
 Figures of one process are CPU time where the platform reports a child's (wall time
-otherwise): on a shared machine wall time waits for other users. Nothing here asserts a
+otherwise): on a shared machine wall time waits for other users. Every child process finds
+mcfit compiled to bytecode, as an installed package has it
+(:func:`mcfit.bench.timing.compiled_bytecode`). Nothing here asserts a
 time; a target not met is printed as NOT MET.
 """
 
@@ -33,7 +35,8 @@ from dataclasses import dataclass
 
 from mcfit.bench.config import QUICK, THROUGHPUT_SCENE, BenchConfig
 from mcfit.bench.records import write_large_csv, write_throughput_files
-from mcfit.bench.timing import (ONE_THREAD, ChildRun, fastest_child, mcfit_command,
+from mcfit.bench.timing import (ONE_THREAD, ChildRun, child_environment,
+                                compiled_bytecode, fastest_child, mcfit_command,
                                 peak_memory_mib)
 
 __all__ = ["Target", "CommandRate", "Throughput", "run_throughput", "format_throughput",
@@ -119,9 +122,10 @@ def run_throughput(config: BenchConfig = QUICK, progress=None) -> Throughput:
     """Measure every figure of issue 17's targets (see the module's docstring)."""
     say = progress or (lambda message: None)
     load = os.getloadavg() if hasattr(os, "getloadavg") else None
-    say(f"throughput: stages of {config.batch_records} records in memory, one core")
-    stages = _stages(config)
     with tempfile.TemporaryDirectory(prefix="mcfit-bench-") as directory:
+        env = compiled_bytecode(os.path.join(directory, "bytecode"))
+        say(f"throughput: stages of {config.batch_records} records in memory, one core")
+        stages = _stages(config, env)
         files = os.path.join(directory, "records")
         one = os.path.join(directory, "one")
         write_throughput_files(config, files, config.batch_files)
@@ -131,27 +135,29 @@ def run_throughput(config: BenchConfig = QUICK, progress=None) -> Throughput:
             for jobs in (1, 2):
                 say(f"throughput: mcfit on {config.batch_files} CSV files, --method {method}, "
                     f"--jobs {jobs}")
-                commands.append(_command_rate(config, directory, method, jobs))
+                commands.append(_command_rate(config, directory, method, jobs, env))
         say("throughput: start-up times")
-        startup = _startup(config, os.path.join(one, "record0000.csv"))
+        startup = _startup(config, os.path.join(one, "record0000.csv"), env)
         large = ("not run in the quick grid (a CSV of about 290 MB, a minute or more): "
                  "run `mcfit bench --full --section throughput`")
         if config.big_samples:
             say(f"throughput: mcfit on a CSV of {config.big_samples:.0e} samples")
-            large = _large_run(config.big_samples, directory)
+            large = _large_run(config.big_samples, directory, env)
     return Throughput(config, {int(k): v for k, v in stages["stages"].items()},
                       stages["records"], stages["fitted"], stages["crests"], stages["auto"],
                       commands, startup, large, peak_memory_mib(), load)
 
 
-def _stages(config):
-    """:func:`mcfit.bench.stages.measure_stages` in a child process with one BLAS thread."""
+def _stages(config, env):
+    """:func:`mcfit.bench.stages.measure_stages` in a child process with one BLAS thread
+    (and ``env``)."""
     spec = {"config": {"seed": config.seed, "batch_records": config.batch_records,
                        "batch_samples": config.batch_samples},
             "lengths": [config.batch_samples // 10, config.batch_samples]}
     code = "from mcfit.bench.stages import main; main()"
     done = subprocess.run([sys.executable, "-c", code, json.dumps(spec)], capture_output=True,
-                          text=True, env={**os.environ, **ONE_THREAD}, check=False)
+                          text=True, env=child_environment({**env, **ONE_THREAD}),
+                          check=False)
     if done.returncode != 0:
         raise RuntimeError(f"the stage measurement failed:\n{done.stderr}")
     return json.loads(done.stdout)
@@ -163,14 +169,14 @@ def _command(files_dir, output, method, jobs):
     return command if method == "auto" else [*command, "--method", method]
 
 
-def _command_rate(config, directory, method, jobs) -> CommandRate:
+def _command_rate(config, directory, method, jobs, env) -> CommandRate:
     output = os.path.join(directory, "results.csv")
     runs = config.batch_runs
     whole = fastest_child(_command(os.path.join(directory, "records"), output, method, jobs),
-                          runs, by="wall")
+                          runs, env=env, by="wall")
     fitted, waveform = _outcome(output) if whole.returncode == 0 else (None, None)
     single = fastest_child(_command(os.path.join(directory, "one"), output, method, jobs),
-                           runs, by="wall")
+                           runs, env=env, by="wall")
     return CommandRate(method, jobs, config.batch_files, whole, single, fitted, waveform)
 
 
@@ -182,20 +188,21 @@ def _outcome(path):
     return len(ok), sum(row.get("method") == "waveform" for row in ok)
 
 
-def _startup(config, record_path):
+def _startup(config, record_path, env):
     runs = config.startup_runs
     python, mcfit = sys.executable, mcfit_command()
     return {
         f'python -c "{IMPORT_FLOOR}"': fastest_child([python, "-c", IMPORT_FLOOR], runs,
-                                                     env=ONE_THREAD),
+                                                     env={**env, **ONE_THREAD}),
         f"mcfit {os.path.basename(record_path)} (one record of {config.batch_samples} samples)":
-            fastest_child([*mcfit, record_path], runs),
-        'python -c "import click"': fastest_child([python, "-c", "import click"], runs),
-        "mcfit --help": fastest_child([*mcfit, "--help"], runs),
+            fastest_child([*mcfit, record_path], runs, env=env),
+        'python -c "import click"': fastest_child([python, "-c", "import click"], runs,
+                                                  env=env),
+        "mcfit --help": fastest_child([*mcfit, "--help"], runs, env=env),
     }
 
 
-def _large_run(samples, directory):
+def _large_run(samples, directory, env):
     """``mcfit FILE --format csv`` on a CSV of ``samples`` rows: (samples, file MiB,
     ChildRun, method chosen); a string when the disk has no room for the file."""
     needed = 2 * _LARGE_ROW_BYTES * samples
@@ -205,7 +212,7 @@ def _large_run(samples, directory):
     write_large_csv(path, samples)
     size = os.path.getsize(path) / 2**20
     output = os.path.join(directory, "large-result.csv")
-    run = fastest_child([*mcfit_command(), path, "--format", "csv", "-o", output], 1)
+    run = fastest_child([*mcfit_command(), path, "--format", "csv", "-o", output], 1, env=env)
     method = None
     if run.returncode == 0:
         with open(output, encoding="utf-8", newline="") as handle:

@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["machine_summary", "fastest", "ChildRun", "run_child", "fastest_child",
-           "mcfit_command", "peak_memory_mib", "ONE_THREAD"]
+           "mcfit_command", "peak_memory_mib", "compiled_bytecode", "child_environment",
+           "ONE_THREAD"]
 
 # A cheap call is repeated until this much wall time has passed and its fastest run kept.
 _TIMING_BUDGET = 0.05
@@ -69,8 +70,9 @@ class ChildRun:
 
 def run_child(command, env=None, stdout=subprocess.DEVNULL) -> ChildRun:
     """Run ``command`` to its end and measure it (``os.wait4`` where there is one, so that
-    the figures are this child's alone)."""
-    environment = None if env is None else {**os.environ, **env}
+    the figures are this child's alone). ``env`` is added to this process's environment;
+    a variable set to None there is left out."""
+    environment = None if env is None else child_environment(env)
     start = time.perf_counter()
     child = subprocess.Popen(command, stdout=stdout, stderr=subprocess.DEVNULL,
                              env=environment)
@@ -118,6 +120,26 @@ def peak_memory_mib():
     except ImportError:
         return None
     return _rss_mib(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+
+
+def compiled_bytecode(directory) -> dict:
+    """The environment of child processes that find mcfit's modules compiled to bytecode in
+    ``directory`` (compiled here, now), as an installed package has them from its install:
+    a start-up time must not count compiling mcfit's source, which an editable install
+    under PYTHONDONTWRITEBYTECODE would otherwise do in every process."""
+    import mcfit
+
+    env = {"PYTHONPYCACHEPREFIX": str(directory), "PYTHONDONTWRITEBYTECODE": None}
+    package = str(Path(mcfit.__file__).parent)
+    subprocess.run([sys.executable, "-m", "compileall", "-q", package], check=False,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                   env=child_environment(env))
+    return env
+
+
+def child_environment(env):
+    """This process's environment with ``env`` added, less its variables set to None."""
+    return {name: value for name, value in {**os.environ, **env}.items() if value is not None}
 
 
 def mcfit_command():

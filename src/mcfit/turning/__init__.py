@@ -88,7 +88,7 @@ def turning_points_of(record, **options):
                                **options)
 
 
-def find_turning_points(t, x, *, period=None, domain="time", source="record"):
+def find_turning_points(t, x, *, period=None, noise=None, domain="time", source="record"):
     """Turning points of a sampled waveform x(t), with amplitudes from half-cycle fits.
 
     Parameters
@@ -99,6 +99,10 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
         Signal; NaN marks missing samples (gaps). Offset and linear drift are estimated.
     period : float, optional
         Period guess in units of ``t`` (default: from the spectrum).
+    noise : float, optional
+        Sample noise sigma (default: from the spectrum). The refinement of the crests stops
+        when their shifts are within it. With ``period`` given too, the spectrum is not
+        computed and no steady hum is looked for.
     domain : {"time", "cycle"}
         Meaning of ``t``, passed through to the result.
     source : str
@@ -118,7 +122,11 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record"):
     steps = np.diff(tf)
     dt = float(_median(steps))
     gaps = _find_gaps(tf, steps, dt)
-    spectral_period, noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
+    if period is None or noise is None:
+        spectral_period, spectral_noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
+        noise = spectral_noise if noise is None else float(noise)
+    else:  # both known: no spectrum
+        spectral_period, hum, notes = period, None, []
     if gaps:
         notes.insert(0, _gap_note(gaps, spectral_period))
     period = _checked_period(spectral_period if period is None else period, dt, source)

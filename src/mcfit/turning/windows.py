@@ -157,17 +157,18 @@ def _window_sums(t, x, lo, hi, centres, omega, gamma, line):
     u1, u2, r = columns[5], columns[6], columns[7]
     np.subtract(x[index], e0 + e1 * (tt - t_ref), out=r)
     del tt, index
-    ws = np.repeat(omega, lengths) * s
-    np.cos(ws, out=u1)
-    np.sin(ws, out=u2)
-    del ws
-    if np.any(gamma):  # the envelope is 1 before the decay rates are known
-        envelope = np.exp(-(np.repeat(gamma[0], lengths)
-                            + 0.5 * np.repeat(gamma[1], lengths) * s) * s)
-        u1 *= envelope
-        u2 *= envelope
-        del envelope
+    # u1 + i*u2 = exp(-g*s - h*s**2/2 + i*w*s): one complex exponential, not cos, sin,
+    # exp and two products (the envelope is 1 before the decay rates are known).
+    exponent = np.empty(total, dtype=complex)
+    np.multiply(np.repeat(omega, lengths), s, out=exponent.imag)
+    exponent.real = 0.0
+    if np.any(gamma):
+        exponent.real -= (np.repeat(gamma[0], lengths)
+                          + 0.5 * np.repeat(gamma[1], lengths) * s) * s
     del s
+    np.exp(exponent, out=exponent)
+    u1[:], u2[:] = exponent.real, exponent.imag
+    del exponent
     for row, (left, right) in enumerate(((u1, u1), (u1, u2), (u2, u2), (u1, r), (u2, r))):
         np.multiply(left, right, out=columns[row])
     r *= r
