@@ -124,9 +124,9 @@ def find_turning_points(t, x, *, period=None, noise=None, domain="time", source=
     gaps = _find_gaps(tf, steps, dt)
     if period is None or noise is None:
         spectral_period, spectral_noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
-        noise = spectral_noise if noise is None else float(noise)
-    else:  # both known: no spectrum
-        spectral_period, hum, notes = period, None, []
+    else:  # both known: no spectrum, no hum search
+        spectral_period, spectral_noise, hum, notes = period, noise, None, []
+    noise = float(spectral_noise if noise is None else noise)
     if gaps:
         notes.insert(0, _gap_note(gaps, spectral_period))
     period = _checked_period(spectral_period if period is None else period, dt, source)
