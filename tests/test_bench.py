@@ -7,6 +7,7 @@ import math
 import re
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,7 +15,8 @@ from click.testing import CliRunner
 
 from mcfit import bench, decay
 from mcfit.bench.throughput import CommandRate
-from mcfit.bench.timing import ChildRun, run_child
+from mcfit.bench.timing import (ChildRun, bytecode_environment, child_environment,
+                                run_child)
 from mcfit.bench.verdicts import _fluid_at
 from mcfit.bounds import waveform_crlb
 from mcfit.cli import cli
@@ -89,8 +91,8 @@ def test_every_section_runs_and_writes_the_plots(tmp_path):
     for row in stages:  # turning points + fit = TP + fit > 0, and records/s its inverse
         _, turning, fitting, total, rate = map(float, row[1:])
         assert total == pytest.approx(turning + fitting, abs=0.11) and total > 0
-        # The total is printed to 0.1 ms, the rate from the unrounded total.
-        assert 1e3 / (total + 0.05) * 0.999 <= rate <= 1e3 / max(total - 0.05, 1e-9) * 1.001
+        # The total is printed to 0.1 ms and the rate, from the unrounded total, to 0.1.
+        assert 1e3 / (total + 0.05) - 0.05 <= rate <= 1e3 / max(total - 0.05, 1e-9) + 0.05
     where = throughput.split("--method auto on the ", 1)[1]
     fitted = int(where.split()[0])
     kept = int(re.search(r"\): (\d+) kept", where).group(1))
@@ -111,6 +113,34 @@ def test_command_rate_removes_the_start_up_of_a_one_file_run():
     assert math.isnan(noisy.rate) and math.isnan(noisy.cpu_rate)
     failed = CommandRate("auto", 1, 41, run(6.0, 5.0), run(2.0, 1.5), None, None)
     assert math.isnan(failed.rate)
+
+
+def test_a_child_environment_leaves_out_what_is_set_to_none(monkeypatch):
+    monkeypatch.setenv("MCFIT_BENCH_KEPT", "1")
+    monkeypatch.setenv("MCFIT_BENCH_DROPPED", "1")
+    env = child_environment({"MCFIT_BENCH_DROPPED": None, "MCFIT_BENCH_ADDED": "2"})
+    assert env["MCFIT_BENCH_KEPT"] == "1" and env["MCFIT_BENCH_ADDED"] == "2"
+    assert "MCFIT_BENCH_DROPPED" not in env
+
+
+def test_child_processes_find_mcfit_compiled_in_the_given_directory(tmp_path, monkeypatch):
+    """Bytecode goes to the directory, none beside mcfit's sources, also where this
+    process writes none (PYTHONDONTWRITEBYTECODE); the warm-up commands run there too."""
+    import mcfit
+
+    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")
+    package = Path(mcfit.__file__).parent
+    before = sorted(package.rglob("*.pyc"))
+    marker = tmp_path / "warmed"
+    env = bytecode_environment(tmp_path / "cache", warm_up=(
+        [sys.executable, "-c", f"open({str(marker)!r}, 'w').close()"],))
+    assert env["PYTHONDONTWRITEBYTECODE"] is None and marker.exists()
+    compiled = {path.name.split(".")[0] for path in (tmp_path / "cache").rglob("*.pyc")}
+    assert {"decay", "analysis", "cli", "timing"} <= compiled
+    assert sorted(package.rglob("*.pyc")) == before
+    done = run_child([sys.executable, "-c", "import sys; sys.exit(sys.flags.dont_write_bytecode)"],
+                     env=env)
+    assert done.returncode == 0  # the variable is gone from the child's environment
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="no peak memory of a child on Windows")

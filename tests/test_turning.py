@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from mcfit.decay import amplitude
-from mcfit.errors import RecordError
+from mcfit.errors import RecordError, UsageError
 from mcfit.turning import find_turning_points, turning_points_from_table
 from mcfit.turning.windows import _window_sums
 
@@ -252,15 +252,17 @@ def test_the_sigma_of_a_cut_window_includes_its_phase_error():
     assert np.max(np.abs(z)) < 3.5
 
 
-def test_window_sums_are_each_windows_sums_by_hand(rng):
+@pytest.mark.parametrize("decaying", [True, False])
+def test_window_sums_are_each_windows_sums_by_hand(decaying, rng):
     """The sums of every window at once (one complex exponential for the envelope, cos and
-    sin) against each window's sums written out, on uneven times with an empty window."""
+    sin) against each window's sums written out, on uneven times with an empty window;
+    with decay rates, and without (the first pass, envelope 1)."""
     t = np.cumsum(rng.uniform(0.5, 1.5, 400)) * 0.01
     x = rng.normal(0.0, 1.0, t.size)
     lo, hi = np.array([3, 60, 60, 150, 290]), np.array([50, 60, 140, 260, 400])
     centres = 0.5 * (t[lo] + t[hi - 1])
     omega = rng.uniform(5.0, 9.0, lo.size)
-    gamma = rng.uniform(-0.5, 0.5, (2, lo.size))
+    gamma = rng.uniform(-0.5, 0.5, (2, lo.size)) * decaying
     line = (0.2, -0.03, 1.0)
     sums = _window_sums(t, x, lo, hi, centres, omega, gamma, line)
     for k in range(lo.size):
@@ -273,19 +275,34 @@ def test_window_sums_are_each_windows_sums_by_hand(rng):
         np.testing.assert_allclose(sums[:, k], by_hand, rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("given", ["noise", "period and noise"])
-def test_a_known_period_and_noise_give_the_same_turning_points(given, rng):
-    """The record's own period and noise, given, stand in for the spectrum's (which is
-    then not computed when both are given): the same crests and amplitudes."""
-    t, x = waveform(50, noise=0.01, rng=rng)
-    found = find_turning_points(t, x)
-    known = {"noise": found.noise_sigma}
-    if given == "period and noise":
-        known["period"] = found.period
-    again = find_turning_points(t, x, **known)
-    assert np.array_equal(again.used, found.used)
-    np.testing.assert_allclose(again.t, found.t, atol=1e-3 * found.period)
-    assert np.max(np.abs(again.y - found.y) / found.sigma) < 0.05
+def test_a_settle_noise_ends_the_refinement_of_clean_crests(monkeypatch):
+    """A noise-free waveform never settles in its (rounding) noise and takes every pass of
+    half-cycle fits; told a sample noise, the refinement stops once the crests' shifts are
+    within it, and the amplitudes stay within a tenth of what that noise would scatter
+    them by."""
+    from mcfit.turning import refine
+
+    passes = []
+    fit_windows = refine._fit_windows
+    monkeypatch.setattr(refine, "_fit_windows",
+                        lambda *args, **kwargs: passes.append(1) or fit_windows(*args, **kwargs))
+    t, x = waveform(50)
+    refined = find_turning_points(t, x)
+    every_pass = len(passes)
+    passes.clear()
+    noise = 1e-3
+    settled = find_turning_points(t, x, settle_noise=noise)
+    assert every_pass == refine._REFINE_PASSES and len(passes) < every_pass
+    assert np.array_equal(settled.used, refined.used)
+    amplitude_sigma = noise * np.sqrt(2 / 50)  # a half-cycle of 25 samples
+    assert np.max(np.abs(settled.y - refined.y)) < 0.1 * amplitude_sigma
+
+
+@pytest.mark.parametrize("noise", [0.0, -1e-3, np.nan, np.inf])
+def test_a_settle_noise_must_be_a_positive_number(noise):
+    t, x = waveform(50)
+    with pytest.raises(UsageError, match="settle_noise must be a positive number"):
+        find_turning_points(t, x, settle_noise=noise)
 
 
 def test_period_drift_with_amplitude():

@@ -90,10 +90,15 @@ def _chain_bias(t, turning, fit, noise_stderr):
     x = equilibrium + phase_plane_motion(times - t0, v["y0"], theta0, fit.omega, v["a"],
                                          v["b"], v["c"])[0]
     try:
-        # Found as the record's were: the record's period and noise, so that the search
-        # stops refining where the record's did (a clean waveform never settles in noise).
-        found = find_turning_points(times, x, period=turning.period, noise=turning.noise_sigma)
+        # Refined as far as the record's crests were: until their shifts are within the
+        # record's sample noise (a noise-free waveform would take every pass).
+        found = find_turning_points(times, x, settle_noise=_positive(turning.noise_sigma))
         again = fitted_values(found, fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
     return {k: (again[k] - v[k]) / noise_stderr[k] for k in fit.selection.terms}
+
+
+def _positive(value):
+    """``value`` where it is a positive number, else None."""
+    return value if math.isfinite(value) and value > 0 else None

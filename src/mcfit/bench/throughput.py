@@ -17,7 +17,7 @@ figure, then the measurements behind them.
 Figures of one process are CPU time where the platform reports a child's (wall time
 otherwise): on a shared machine wall time waits for other users. Every child process finds
 mcfit compiled to bytecode, as an installed package has it
-(:func:`mcfit.bench.timing.compiled_bytecode`). Nothing here asserts a
+(:func:`mcfit.bench.timing.bytecode_environment`). Nothing here asserts a
 time; a target not met is printed as NOT MET.
 """
 
@@ -35,8 +35,8 @@ from dataclasses import dataclass
 
 from mcfit.bench.config import QUICK, THROUGHPUT_SCENE, BenchConfig
 from mcfit.bench.records import write_large_csv, write_throughput_files
-from mcfit.bench.timing import (ONE_THREAD, ChildRun, child_environment,
-                                compiled_bytecode, fastest_child, mcfit_command,
+from mcfit.bench.timing import (ONE_THREAD, ChildRun, bytecode_environment,
+                                child_environment, fastest_child, mcfit_command,
                                 peak_memory_mib)
 
 __all__ = ["Target", "CommandRate", "Throughput", "run_throughput", "format_throughput",
@@ -123,13 +123,15 @@ def run_throughput(config: BenchConfig = QUICK, progress=None) -> Throughput:
     say = progress or (lambda message: None)
     load = os.getloadavg() if hasattr(os, "getloadavg") else None
     with tempfile.TemporaryDirectory(prefix="mcfit-bench-") as directory:
-        env = compiled_bytecode(os.path.join(directory, "bytecode"))
-        say(f"throughput: stages of {config.batch_records} records in memory, one core")
-        stages = _stages(config, env)
         files = os.path.join(directory, "records")
         one = os.path.join(directory, "one")
         write_throughput_files(config, files, config.batch_files)
         write_throughput_files(config, one, 1)
+        env = bytecode_environment(os.path.join(directory, "bytecode"), warm_up=(
+            _command(one, os.path.join(directory, "warm-up.csv"), "auto", 1),
+            [sys.executable, "-c", IMPORT_FLOOR]))
+        say(f"throughput: stages of {config.batch_records} records in memory, one core")
+        stages = _stages(config, env)
         commands = []
         for method in config.batch_methods:
             for jobs in (1, 2):

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["machine_summary", "fastest", "ChildRun", "run_child", "fastest_child",
-           "mcfit_command", "peak_memory_mib", "compiled_bytecode", "child_environment",
+           "mcfit_command", "peak_memory_mib", "bytecode_environment", "child_environment",
            "ONE_THREAD"]
 
 # A cheap call is repeated until this much wall time has passed and its fastest run kept.
@@ -122,18 +122,20 @@ def peak_memory_mib():
     return _rss_mib(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
 
 
-def compiled_bytecode(directory) -> dict:
-    """The environment of child processes that find mcfit's modules compiled to bytecode in
-    ``directory`` (compiled here, now), as an installed package has them from its install:
-    a start-up time must not count compiling mcfit's source, which an editable install
-    under PYTHONDONTWRITEBYTECODE would otherwise do in every process."""
+def bytecode_environment(directory, warm_up=()) -> dict:
+    """The environment of child processes that keep compiled bytecode in ``directory``
+    (PYTHONPYCACHEPREFIX, PYTHONDONTWRITEBYTECODE left out), with mcfit's modules compiled
+    there now, as an installed package has them from its install: a start-up time must not
+    count compiling mcfit's source, which an editable install under PYTHONDONTWRITEBYTECODE
+    does in every process. The prefix hides the libraries' own bytecode too: the commands
+    ``warm_up`` are run once, untimed, to compile what they import."""
     import mcfit
 
     env = {"PYTHONPYCACHEPREFIX": str(directory), "PYTHONDONTWRITEBYTECODE": None}
     package = str(Path(mcfit.__file__).parent)
-    subprocess.run([sys.executable, "-m", "compileall", "-q", package], check=False,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                   env=child_environment(env))
+    for command in ([sys.executable, "-m", "compileall", "-q", package], *warm_up):
+        subprocess.run(command, check=False, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL, env=child_environment(env))
     return env
 
 

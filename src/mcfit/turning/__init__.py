@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from mcfit.errors import UsageError
 from mcfit.hum import find_steady_line, subtract_steady_line
 from mcfit.turning.checks import _check_count, _check_decay, _checked_samples, _closing_notes
 from mcfit.turning.checks import _with_scatter
@@ -88,7 +89,8 @@ def turning_points_of(record, **options):
                                **options)
 
 
-def find_turning_points(t, x, *, period=None, noise=None, domain="time", source="record"):
+def find_turning_points(t, x, *, period=None, domain="time", source="record",
+                        settle_noise=None):
     """Turning points of a sampled waveform x(t), with amplitudes from half-cycle fits.
 
     Parameters
@@ -99,14 +101,15 @@ def find_turning_points(t, x, *, period=None, noise=None, domain="time", source=
         Signal; NaN marks missing samples (gaps). Offset and linear drift are estimated.
     period : float, optional
         Period guess in units of ``t`` (default: from the spectrum).
-    noise : float, optional
-        Sample noise sigma (default: from the spectrum). The refinement of the crests stops
-        when their shifts are within it. With ``period`` given too, the spectrum is not
-        computed and no steady hum is looked for.
     domain : {"time", "cycle"}
         Meaning of ``t``, passed through to the result.
     source : str
         Name of the record for messages.
+    settle_noise : float, optional
+        Sample noise sigma within which the crests' shifts count as settled, which ends
+        their refinement (default: the spectrum's noise level). For a noise-free
+        copy of a record, the record's noise: its crests are then refined as far as the
+        record's were (a noise-free waveform never settles, and takes every pass).
 
     Returns
     -------
@@ -117,16 +120,16 @@ def find_turning_points(t, x, *, period=None, noise=None, domain="time", source=
     RecordError
         Constant or all-NaN signal, time not increasing, no oscillation above the noise,
         beating, a growing oscillation, or fewer than 4 usable turning points.
+    UsageError
+        ``settle_noise`` not a positive number.
     """
+    if settle_noise is not None and not (np.isfinite(settle_noise) and settle_noise > 0):
+        raise UsageError(f"settle_noise must be a positive number, not {settle_noise!r}")
     t, tf, xf = _checked_samples(t, x, source)
     steps = np.diff(tf)
     dt = float(_median(steps))
     gaps = _find_gaps(tf, steps, dt)
-    if period is None or noise is None:
-        spectral_period, spectral_noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
-    else:  # both known: no spectrum, no hum search
-        spectral_period, spectral_noise, hum, notes = period, noise, None, []
-    noise = float(spectral_noise if noise is None else noise)
+    spectral_period, noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
     if gaps:
         notes.insert(0, _gap_note(gaps, spectral_period))
     period = _checked_period(spectral_period if period is None else period, dt, source)
@@ -137,7 +140,8 @@ def find_turning_points(t, x, *, period=None, noise=None, domain="time", source=
     centres, signs = _coarse_extrema(tf, xf, *line, period, samples_per_cycle, noise, source)
     held = _held_until(tf, xf, period, noise)  # crests before it count nowhere
     samples = Samples.of(tf, xf, steps)
-    refined = _refine(samples, centres, signs, line, period, noise, held)
+    refined = _refine(samples, centres, signs, line, period,
+                      noise if settle_noise is None else float(settle_noise), held)
     line = refined.line
     m = _measure(samples, refined, noise)
 
