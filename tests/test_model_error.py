@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 import mcfit.turning
-from mcfit.analysis import fit_turning_points
+from mcfit.analysis import analyse_record, fit_turning_points
 from mcfit.model_error import LIMIT, averaged_law_bias
 from mcfit.motion import simulate_record
-from mcfit.records import read_record
+from mcfit.records import Record, read_record
 from mcfit.turning import find_turning_points, refine
 
 CAPSTONE = Path(__file__).parents[1] / "sample_data" / "capstone_runs.csv"
@@ -75,3 +75,22 @@ def test_the_chain_refines_the_clean_crests_as_far_as_the_records(record, monkey
     for term, z in refined.z.items():
         assert abs(settled.z[term] - z) < 0.01
     assert (settled.largest > LIMIT) == (refined.largest > LIMIT)
+
+
+def test_a_chain_without_turning_points_says_the_bias_cannot_be_predicted():
+    """Q 16 with Coulomb friction, which holds the mass off centre near the end: on the
+    noise-free waveform of the fitted coefficients the search reads the still end as a
+    rise (beating) and finds no turning points, so no bias is predicted and none is
+    claimed ("predicted at inf standard errors" before); auto fits the waveform."""
+    t, x = simulate_record(0.0, 0.2, 0.02, 1.0, 1.0, 20.0, 100.0, method="auto", noise=1e-3,
+                           rng=np.random.default_rng(1))
+    record = Record(source="stop", t=t, x=x)
+    analysis = analyse_record(record, method="turning-points")
+    assert math.isinf(averaged_law_bias(t, analysis.turning, analysis.fit).largest)
+    fit = analyse_record(record).fit
+    assert fit.method == "waveform"
+    assert fit.method_reason == (
+        "no turning points were found on the noise-free waveform of the fitted coefficients, "
+        "so the averaged law's bias cannot be predicted: fitted by the equation of motion")
+    assert abs(fit.values["b"] - 0.2) < 3 * fit.stderr["b"]
+    assert abs(fit.values["c"] - 0.02) < 3 * fit.stderr["c"]

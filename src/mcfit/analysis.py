@@ -188,6 +188,9 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
 
 
 def _predicted_bias(error, fit):
+    if not math.isfinite(error.largest):  # the chain found no turning points to fit
+        return ("no turning points were found on the noise-free waveform of the fitted "
+                "coefficients, so the averaged law's bias cannot be predicted")
     q_min = error.q_min if error.q_min and math.isfinite(error.q_min) else None
     coulomb = " without the Coulomb term" if fit.values.get("c") else ""
     return (f"the averaged law's bias is predicted at {error.largest:.2g} standard errors"
