@@ -107,9 +107,9 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
         Name of the record for messages.
     settle_noise : float, optional
         Sample noise sigma within which the crests' shifts count as settled, which ends
-        their refinement (default: the spectrum's noise level). For a noise-free
-        copy of a record, the record's noise: its crests are then refined as far as the
-        record's were (a noise-free waveform never settles, and takes every pass).
+        their refinement (default: the spectrum's noise level). For a noise-free copy of
+        a record, the record's noise: its crests are then refined as far as the record's
+        were (a noise-free waveform never settles, and takes every pass).
 
     Returns
     -------
