@@ -8,6 +8,9 @@ import pytest
 
 from mcfit import decay
 from mcfit.analysis import analyse_record
+from mcfit.errors import RecordError
+from mcfit.hum import peak_frequency
+from mcfit.motion import simulate_record
 from mcfit.records import Record
 from mcfit.turning import find_turning_points
 
@@ -129,3 +132,29 @@ def test_the_waveform_fit_sees_the_record_without_its_hum():
     fit = analyse_record(Record(source="q3 hum", t=t, x=x)).fit
     assert fit.method == "waveform" and fit.model == "b"
     assert abs(fit.values["b"] - 1.0) < 3 * fit.stderr["b"]
+
+
+def test_a_peak_frequency_stays_between_the_neighbouring_bins():
+    """The parabola through the log power finds a Gaussian line between bins, at its peak
+    bin (20.3 from bin 20) and from the bin beside it (the edge of a band searched: 20.3
+    from bin 21); where the log power is nearly straight, the vertex stays within a bin
+    instead of anywhere."""
+    frequencies = np.arange(64) * 0.05
+    bins = np.arange(64)
+    line = np.exp(-0.5 * ((bins - 20.3) / 1.5) ** 2)
+    for k in (20, 21):
+        assert peak_frequency(line, frequencies, k) == pytest.approx(20.3 * 0.05, rel=1e-12)
+    slope = np.exp(-0.2 * bins - 1e-7 * (bins - 9) ** 2)  # straight but for a hair
+    assert abs(peak_frequency(slope, frequencies, 9) - 9 * 0.05) <= 0.05
+
+
+def test_a_hum_search_at_the_edge_of_its_band_is_no_crash():
+    """A decay whose spectrum's strongest line apart from the oscillation sat on the lowest
+    bin searched, with nearly straight log power there: the hum's frequency came out at
+    -816 and the harmonics' search raised a ValueError (a traceback for the user). Now the
+    record gets the turning-point search's own verdict."""
+    t, x = simulate_record(0.24409898330981858, 0.001261810135739639, 0.018465360816708534,
+                           1.0, 1.0, 37.0, 15.0, method="accurate", noise=1 / 4091.57,
+                           rng=np.random.default_rng(186092))
+    with pytest.raises(RecordError, match="rises again"):
+        find_turning_points(t, x)

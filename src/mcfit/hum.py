@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["SteadyLine", "find_steady_line", "subtract_steady_line"]
+__all__ = ["SteadyLine", "find_steady_line", "subtract_steady_line", "peak_frequency"]
 
 _APART = 3.0          # a hum lies more than this factor from the oscillation's frequency
 _HARMONICS = 10       # harmonics of a hum fitted at most
@@ -65,7 +65,7 @@ def find_steady_line(t, x, periodogram, noise):
     ``noise``: the sample noise sigma.
     """
     frequencies, power, window_sum, energy, k1 = periodogram
-    f1 = _peak_frequency(power, frequencies, k1)
+    f1 = peak_frequency(power, frequencies, k1)
     k2 = _strongest_apart(frequencies, power, f1)
     if k2 is None:
         return None
@@ -76,7 +76,7 @@ def find_steady_line(t, x, periodogram, noise):
         noise = min(noise, np.sqrt(np.median(power) / (np.log(2) * energy)))
         if not a2 > noise:
             return None
-    f2 = _peak_frequency(power, frequencies, k2)
+    f2 = peak_frequency(power, frequencies, k2)
     span = 1.0 / frequencies[1]
     steady1, decays1 = _steadiness(t, x, f1, span, noise)
     steady2, decays2 = _steadiness(t, x, f2, span, noise)
@@ -109,14 +109,18 @@ def subtract_steady_line(t, x, line):
     return out
 
 
-def _peak_frequency(power, frequencies, k):
-    """Frequency of the line at bin k, from a parabola through the log power."""
+def peak_frequency(power, frequencies, k):
+    """Frequency of the line at bin k of a periodogram, from the parabola through the log
+    power at bins k - 1, k and k + 1, its vertex kept between bins k - 1 and k + 1. At a
+    local maximum the vertex lies within half a bin of k; at the edge of a band searched
+    it may lie up to a bin away (a line just outside the band), but where the log power
+    is nearly straight the vertex of the parabola lies anywhere (it put a hum at -816)."""
     if not 0 < k < power.size - 1:
         return float(frequencies[k])
     a, b, c = np.log(power[k - 1:k + 2] + 1e-300)
     denominator = a - 2 * b + c
     offset = 0.5 * (a - c) / denominator if denominator < 0 else 0.0
-    return float((k + offset) * frequencies[1])
+    return float((k + min(max(offset, -1.0), 1.0)) * frequencies[1])
 
 
 def _strongest_apart(frequencies, power, f1):

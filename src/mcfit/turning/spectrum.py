@@ -7,6 +7,7 @@ import functools
 import numpy as np
 
 from mcfit.errors import RecordError
+from mcfit.hum import peak_frequency
 from mcfit.turning.common import _median, _robust_sigma
 
 # Longest stretch fed to the FFT for the coarse period and noise level.
@@ -87,13 +88,7 @@ def _spectrum(t, x, dt, steps):
     if power.size <= lowest + 2:
         return float("nan"), float("nan"), None
     k = lowest + int(np.argmax(power[lowest:]))
-    if 0 < k < power.size - 1:
-        a, b, c = np.log(power[k - 1:k + 2] + 1e-300)
-        denominator = a - 2 * b + c
-        offset = 0.5 * (a - c) / denominator if denominator < 0 else 0.0
-    else:
-        offset = 0.0
-    f0 = (k + offset) * frequencies[1]
+    f0 = peak_frequency(power, frequencies, k)
     noise = _spectral_noise(power, frequencies, f0, energy, x[:n])
     return ((1.0 / f0 if f0 > 0 else float("nan")), noise,
             (frequencies, power, window_sum, energy, k))
