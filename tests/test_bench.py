@@ -16,7 +16,7 @@ from click.testing import CliRunner
 from mcfit import bench, decay
 from mcfit.bench.throughput import CommandRate
 from mcfit.bench.timing import (ChildRun, bytecode_environment, child_environment,
-                                run_child)
+                                fastest_in_turn, run_child)
 from mcfit.bench.verdicts import _fluid_at
 from mcfit.bounds import waveform_crlb
 from mcfit.cli import cli
@@ -113,6 +113,21 @@ def test_command_rate_removes_the_start_up_of_a_one_file_run():
     assert math.isnan(noisy.rate) and math.isnan(noisy.cpu_rate)
     failed = CommandRate("auto", 1, 41, run(6.0, 5.0), run(2.0, 1.5), None, None)
     assert math.isnan(failed.rate)
+
+
+def test_commands_in_turn_each_keep_their_fastest_run(tmp_path):
+    """The commands run one after the other, round after round (A B A B, not A A B B),
+    each keeping its fastest run; a command that fails keeps its failed run."""
+    log = tmp_path / "order"
+
+    def command(name, code=0):
+        return [sys.executable, "-c",
+                f"open({str(log)!r}, 'a').write({name!r}); raise SystemExit({code})"]
+
+    runs = fastest_in_turn([(command("A"), None), (command("B"), {}), (command("C", 3), None)],
+                           3)
+    assert log.read_text() == "ABCABAB"
+    assert [run.returncode for run in runs] == [0, 0, 3]
 
 
 def test_a_child_environment_leaves_out_what_is_set_to_none(monkeypatch):

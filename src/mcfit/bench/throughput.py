@@ -11,6 +11,10 @@ figure, then the measurements behind them.
   the far slower waveform fit.
 - **Start-up:** a one-record run against the import floor of its dependencies, and
   ``mcfit --help`` against ``import click``, the fastest of a few runs.
+
+The commands compared in a ratio run in turn (:func:`mcfit.bench.timing.fastest_in_turn`):
+a shared machine's speed drifts by several per cent within minutes, which would otherwise
+move a ratio by as much.
 - **10^7 samples:** time and peak resident memory of ``mcfit FILE`` on a CSV of 10^7
   rows, against the file's size (only with ``config.big_samples``; the quick grid skips it).
 
@@ -36,8 +40,8 @@ from dataclasses import dataclass
 from mcfit.bench.config import QUICK, THROUGHPUT_SCENE, BenchConfig
 from mcfit.bench.records import write_large_csv, write_throughput_files
 from mcfit.bench.timing import (ONE_THREAD, ChildRun, bytecode_environment,
-                                child_environment, fastest_child, mcfit_command,
-                                peak_memory_mib)
+                                child_environment, fastest_child, fastest_in_turn,
+                                mcfit_command, peak_memory_mib)
 
 __all__ = ["Target", "CommandRate", "Throughput", "run_throughput", "format_throughput",
            "ISSUE_FILES"]
@@ -134,10 +138,9 @@ def run_throughput(config: BenchConfig = QUICK, progress=None) -> Throughput:
         stages = _stages(config, env)
         commands = []
         for method in config.batch_methods:
-            for jobs in (1, 2):
-                say(f"throughput: mcfit on {config.batch_files} CSV files, --method {method}, "
-                    f"--jobs {jobs}")
-                commands.append(_command_rate(config, directory, method, jobs, env))
+            say(f"throughput: mcfit on {config.batch_files} CSV files, --method {method}, "
+                "--jobs 1 and 2")
+            commands += _command_rates(config, directory, method, env)
         say("throughput: start-up times")
         startup = _startup(config, os.path.join(one, "record0000.csv"), env)
         large = ("not run in the quick grid (a CSV of about 290 MB, a minute or more): "
@@ -171,15 +174,22 @@ def _command(files_dir, output, method, jobs):
     return command if method == "auto" else [*command, "--method", method]
 
 
-def _command_rate(config, directory, method, jobs, env) -> CommandRate:
-    output = os.path.join(directory, "results.csv")
-    runs = config.batch_runs
-    whole = fastest_child(_command(os.path.join(directory, "records"), output, method, jobs),
-                          runs, env=env, by="wall")
-    fitted, waveform = _outcome(output) if whole.returncode == 0 else (None, None)
-    single = fastest_child(_command(os.path.join(directory, "one"), output, method, jobs),
-                           runs, env=env, by="wall")
-    return CommandRate(method, jobs, config.batch_files, whole, single, fitted, waveform)
+def _command_rates(config, directory, method, env) -> list:
+    """The :class:`CommandRate` of ``method`` at ``--jobs`` 1 and 2: the four commands
+    (every file and one file, at each) run in turn, so that the machine's drift slows
+    them alike."""
+    records, one = (os.path.join(directory, name) for name in ("records", "one"))
+    outputs = {jobs: os.path.join(directory, f"results-{jobs}.csv") for jobs in (1, 2)}
+    single_output = os.path.join(directory, "one-result.csv")
+    commands = [(_command(folder, output, method, jobs), env) for jobs in (1, 2)
+                for folder, output in ((records, outputs[jobs]), (one, single_output))]
+    runs = fastest_in_turn(commands, config.batch_runs, by="wall")
+    rates = []
+    for jobs, whole, single in ((1, *runs[:2]), (2, *runs[2:])):
+        fitted, waveform = _outcome(outputs[jobs]) if whole.returncode == 0 else (None, None)
+        rates.append(CommandRate(method, jobs, config.batch_files, whole, single, fitted,
+                                 waveform))
+    return rates
 
 
 def _outcome(path):
@@ -191,17 +201,17 @@ def _outcome(path):
 
 
 def _startup(config, record_path, env):
-    runs = config.startup_runs
+    """The start-up commands, each the fastest of ``config.startup_runs``, run in turn so
+    that each ratio compares runs made at the same time."""
     python, mcfit = sys.executable, mcfit_command()
-    return {
-        f'python -c "{IMPORT_FLOOR}"': fastest_child([python, "-c", IMPORT_FLOOR], runs,
-                                                     env={**env, **ONE_THREAD}),
+    commands = {
+        f'python -c "{IMPORT_FLOOR}"': ([python, "-c", IMPORT_FLOOR], {**env, **ONE_THREAD}),
         f"mcfit {os.path.basename(record_path)} (one record of {config.batch_samples} samples)":
-            fastest_child([*mcfit, record_path], runs, env=env),
-        'python -c "import click"': fastest_child([python, "-c", "import click"], runs,
-                                                  env=env),
-        "mcfit --help": fastest_child([*mcfit, "--help"], runs, env=env),
+            ([*mcfit, record_path], env),
+        'python -c "import click"': ([python, "-c", "import click"], env),
+        "mcfit --help": ([*mcfit, "--help"], env),
     }
+    return dict(zip(commands, fastest_in_turn(list(commands.values()), config.startup_runs)))
 
 
 def _large_run(samples, directory, env):

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["machine_summary", "fastest", "ChildRun", "run_child", "fastest_child",
+           "fastest_in_turn",
            "mcfit_command", "peak_memory_mib", "bytecode_environment", "child_environment",
            "ONE_THREAD"]
 
@@ -94,13 +95,22 @@ def fastest_child(command, runs, env=None, by="cpu") -> ChildRun:
     """The run of ``command`` (``runs`` times) with the smallest CPU time (``by="cpu"``,
     wall time where CPU time is not reported) or wall time (``by="wall"``): on a shared
     machine the least disturbed one. A failed run is returned at once."""
-    best = None
+    return fastest_in_turn([(command, env)], runs, by)[0]
+
+
+def fastest_in_turn(commands, runs, by="cpu") -> list:
+    """:func:`fastest_child` of each (command, env) in ``commands``, the commands run one
+    after the other ``runs`` times, so that a machine whose speed drifts (a shared one
+    does, by several per cent within minutes) slows all of them alike and their ratios
+    hold. A failed run is kept as its command's result."""
+    best = [None] * len(commands)
     for _ in range(max(runs, 1)):
-        run = run_child(command, env)
-        if run.returncode != 0:
-            return run
-        if best is None or _key(run, by) < _key(best, by):
-            best = run
+        for i, (command, env) in enumerate(commands):
+            if best[i] is not None and best[i].returncode != 0:
+                continue
+            run = run_child(command, env)
+            if best[i] is None or run.returncode != 0 or _key(run, by) < _key(best[i], by):
+                best[i] = run
     return best
 
 
