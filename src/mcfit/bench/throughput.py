@@ -11,18 +11,16 @@ figure, then the measurements behind them.
   the far slower waveform fit.
 - **Start-up:** a one-record run against the import floor of its dependencies, and
   ``mcfit --help`` against ``import click``, the fastest of a few runs.
-
-The commands compared in a ratio run in turn (:func:`mcfit.bench.timing.fastest_in_turn`):
-a shared machine's speed drifts by several per cent within minutes, which would otherwise
-move a ratio by as much.
 - **10^7 samples:** time and peak resident memory of ``mcfit FILE`` on a CSV of 10^7
   rows, against the file's size (only with ``config.big_samples``; the quick grid skips it).
 
-Figures of one process are CPU time where the platform reports a child's (wall time
-otherwise): on a shared machine wall time waits for other users. Every child process finds
-mcfit compiled to bytecode, as an installed package has it
-(:func:`mcfit.bench.timing.bytecode_environment`). Nothing here asserts a
-time; a target not met is printed as NOT MET.
+The commands compared in a ratio run in turn (:func:`mcfit.bench.timing.fastest_in_turn`):
+a shared machine's speed drifts by several per cent within minutes, which would otherwise
+move a ratio by as much. Figures of one process are CPU time where the platform reports a
+child's (wall time otherwise): on a shared machine wall time waits for other users. Every
+child process finds mcfit compiled to bytecode, as an installed package has it
+(:func:`mcfit.bench.timing.bytecode_environment`). Nothing here asserts a time; a target
+not met is printed as NOT MET.
 """
 
 from __future__ import annotations
