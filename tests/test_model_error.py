@@ -32,6 +32,15 @@ def _noisy_low_q(q, seed):
                            noise=1 / 40, rng=np.random.default_rng([11, q, seed]))
 
 
+def _fully_refined(t, turning, fit, monkeypatch):
+    """The prediction of a chain whose search refines the clean crests until they never
+    move (told no settle noise)."""
+    search = mcfit.turning.find_turning_points
+    with monkeypatch.context() as patch:
+        patch.setattr(mcfit.turning, "find_turning_points", lambda t, x, **_: search(t, x))
+        return averaged_law_bias(t, turning, fit)
+
+
 def _counting_window_passes(monkeypatch):
     """A list that grows by one for every pass of half-cycle fits of the refinement."""
     passes = []
@@ -65,11 +74,8 @@ def test_the_chain_refines_the_clean_crests_as_far_as_the_records(record, monkey
     passes.clear()
     settled = averaged_law_bias(t, turning, fit)
     settled_passes = len(passes)
-    search = mcfit.turning.find_turning_points
-    monkeypatch.setattr(mcfit.turning, "find_turning_points",
-                        lambda t, x, **_: search(t, x))  # refined until it never moves
     passes.clear()
-    refined = averaged_law_bias(t, turning, fit)
+    refined = _fully_refined(t, turning, fit, monkeypatch)
     assert settled.how == refined.how == "chain"
     assert settled_passes <= records_passes and settled_passes < len(passes)
     assert settled.z.keys() == refined.z.keys()
@@ -104,7 +110,6 @@ def test_the_settled_chain_predicts_as_the_full_refinement_on_random_records(mon
     refinement's up to 1 standard error (the limit is 0.3), within 25 % above, and
     decides alike."""
     rng = np.random.default_rng(20261126)
-    search = mcfit.turning.find_turning_points
     compared = 0
     for seed in range(200):
         q = math.exp(rng.uniform(math.log(3), math.log(60)))
@@ -122,13 +127,12 @@ def test_the_settled_chain_predicts_as_the_full_refinement_on_random_records(mon
             fit = fit_turning_points(turning)
         except McfitError:
             continue  # refused records reach no chain
-        if not fit.selection.terms or averaged_law_bias(t, turning, fit).how != "chain":
+        if not fit.selection.terms:
             continue
         settled = averaged_law_bias(t, turning, fit)
-        monkeypatch.setattr(mcfit.turning, "find_turning_points",
-                            lambda t, x, **_: search(t, x))
-        refined = averaged_law_bias(t, turning, fit)
-        monkeypatch.setattr(mcfit.turning, "find_turning_points", search)
+        if settled.how != "chain":
+            continue
+        refined = _fully_refined(t, turning, fit, monkeypatch)
         if math.isinf(settled.largest) or math.isinf(refined.largest):
             continue  # no turning points on the clean waveform: the waveform is fitted
         compared += 1

@@ -17,9 +17,8 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["machine_summary", "fastest", "ChildRun", "run_child", "fastest_child",
-           "fastest_in_turn",
-           "mcfit_command", "peak_memory_mib", "bytecode_environment", "child_environment",
-           "ONE_THREAD"]
+           "fastest_in_turn", "mcfit_command", "peak_memory_mib", "bytecode_environment",
+           "child_environment", "ONE_THREAD"]
 
 # A cheap call is repeated until this much wall time has passed and its fastest run kept.
 _TIMING_BUDGET = 0.05
