@@ -152,9 +152,11 @@ def test_a_hum_search_at_the_edge_of_its_band_is_no_crash():
     """A decay whose spectrum's strongest line apart from the oscillation sat on the lowest
     bin searched, with nearly straight log power there: the hum's frequency came out at
     -816 and the harmonics' search raised a ValueError (a traceback for the user). Now the
-    record gets the turning-point search's own verdict."""
+    record gets the turning-point search's own verdict: the decay stops (c = 0.018) and
+    what follows is left out."""
     t, x = simulate_record(0.24409898330981858, 0.001261810135739639, 0.018465360816708534,
                            1.0, 1.0, 37.0, 15.0, method="accurate", noise=1 / 4091.57,
                            rng=np.random.default_rng(186092))
-    with pytest.raises(RecordError, match="rises again"):
-        find_turning_points(t, x)
+    points = find_turning_points(t, x)
+    assert points.count >= 20 and not points.warnings
+    assert any("rises again" in note for note in points.notes)

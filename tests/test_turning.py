@@ -317,11 +317,15 @@ def test_period_drift_with_amplitude():
     assert any("period changes" in note for note in points.notes)
 
 
-def test_beating_is_an_error():
+def test_a_beat_is_fitted_before_its_first_node_and_named_in_a_warning():
     t = np.arange(0, 60, 0.05)
     x = np.cos(2 * np.pi * t) + 0.8 * np.cos(2 * np.pi * 1.1 * t)
-    with pytest.raises(RecordError, match="beating"):
-        find_turning_points(t, x, source="beat.csv")
+    points = find_turning_points(t, x, source="beat.csv")
+    assert len(points.warnings) == 1 and "beating of two modes" in points.warnings[0]
+    # The envelope |1 + 0.8 exp(0.2 pi i t)| falls to its node at t = 5.
+    assert np.all(points.t[points.used] < 5.0)
+    after = np.array(points.excluded_reason) == "after the decay"
+    assert np.all(points.t[after] > 4.0) and np.count_nonzero(after) > 100
 
 
 def test_growth_is_an_error():

@@ -37,7 +37,7 @@ class Analysis:
 
     @property
     def warnings(self) -> tuple[str, ...]:
-        found = []
+        found = list(self.turning.warnings) if self.turning is not None else []
         if self.fit is not None:
             found += list(self.fit.warnings)
         return tuple(found)

@@ -46,7 +46,7 @@ import numpy as np
 
 from mcfit.errors import UsageError
 from mcfit.hum import find_steady_line, subtract_steady_line
-from mcfit.turning.checks import _check_count, _check_decay, _checked_samples, _closing_notes
+from mcfit.turning.checks import _check_count, _checked_samples, _closing_notes, _cut_at_rise
 from mcfit.turning.checks import _with_scatter
 from mcfit.turning.common import _median
 from mcfit.turning.crests import _phase_weights, _projected_crests, _with_excluded
@@ -119,7 +119,9 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     ------
     RecordError
         Constant or all-NaN signal, time not increasing, no oscillation above the noise,
-        beating, a growing oscillation, or fewer than 4 usable turning points.
+        a growing oscillation, or fewer than 4 usable turning points. A rise of the
+        amplitude after a fall is no error: the part the decay does not need is left out
+        and said in ``notes`` (the end of a decay) or ``warnings`` (a beat or disturbance).
     UsageError
         ``settle_noise`` not a positive number.
     """
@@ -168,8 +170,11 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
                                                 floor_level, phase_lost)
     sigma_y, scatter = _with_scatter(y, sigma_y, log_step, reasons == "")
     notes += tail + scatter
+    rise_release, rise_notes, warnings = _cut_at_rise(crests, y, sigma_y, reasons, source,
+                                                      floor_level)
+    notes += rise_notes
+    release_time = rise_release if np.isfinite(rise_release) else release_time
     used = reasons == ""
-    _check_decay(crests, y, sigma_y, used, source, floor_level)
     _check_count(y, reasons, source)
     e0, e1, t_ref = line
     notes += _closing_notes(domain, drift, drift_sigma, e1 * (tf[-1] - tf[0]), m.noise_sigma,
@@ -183,7 +188,8 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
         equilibrium=float(e0 + e1 * (t[0] - t_ref)), equilibrium_drift=float(e1),
         noise_sigma=float(m.noise_sigma), noise_floor=float(floor_level),
         noise_floor_time=floor_time, release_time=release_time, gaps=tuple(gaps),
-        domain=domain, notes=tuple(notes), steady_line=hum, t_start=float(t[0]))
+        domain=domain, notes=tuple(notes), warnings=tuple(warnings), steady_line=hum,
+        t_start=float(t[0]))
 
 
 def _coarse_spectrum(tf, xf, dt, steps):

@@ -121,13 +121,56 @@ def _amplitude_scatter(y, sigma, log_step, candidate):
     return float(_robust_sigma(d3) / np.sqrt(20.0))
 
 
-def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
-    """Raise for a growing oscillation or beating (the envelope rises again)."""
-    index = np.flatnonzero(used)
+def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
+    """(release time or NaN, notes, warnings): where the smoothed amplitudes rise again
+    after a fall, the part the decay does not need is left out in ``reasons`` (changed in
+    place) instead of refusing the record. A rise to the largest amplitude early on, with
+    the decay undisturbed after it, starts the free decay ("before release"); any other
+    rise ends it where the amplitude first reaches its dip ("after the decay"). Raises
+    :class:`RecordError` only for an oscillation that grows as a whole."""
+    release, notes, warnings = float("nan"), [], []
+    index = np.flatnonzero(reasons == "")
+    _check_growth(centres, y, sigma_y, index, source)
+    while index.size >= MIN_TURNING_POINTS:
+        smooth = _running_median(y[index], 5 if index.size >= 10 else 3)
+        noise = _median(sigma_y[index])
+        k = _rise(smooth, noise, sigma_y[index], floor)
+        if k is None:
+            break
+        dip = int(np.argmin(smooth[:k + 1]))
+        if (smooth[k] >= smooth[0] and 2 * k < smooth.size
+                and _rise(smooth[k:], noise, sigma_y[index[k:]], floor) is None):
+            reasons[index[:k]] = "before release"
+            release = float(centres[index[k]])
+            notes.append(f"the free decay starts at t = {release:.6g}, where the amplitude "
+                         f"rises to its largest ({smooth[k]:.3g}) after falling to "
+                         f"{smooth[dip]:.3g}: held, driven or disturbed before it; {k} "
+                         "turning points before it left out")
+        else:
+            end = _end_of_decay(smooth, dip, noise, sigma_y[index])
+            reasons[index[end]:] = np.where(reasons[index[end]:] == "", "after the decay",
+                                            reasons[index[end]:])
+            said = (f"the amplitude falls to {smooth[dip]:.3g} at t = "
+                    f"{centres[index[dip]]:.6g} and rises again to {smooth[k]:.3g} at "
+                    f"t = {centres[index[k]]:.6g}")
+            left_out = (f"the {index.size - end} turning points from t = "
+                        f"{centres[index[end]]:.6g} are left out and the decay before them "
+                        "is fitted")
+            if smooth[dip] <= 3 * max(noise, floor):
+                notes.append(f"the decay ends in the noise or stops: {said} (noise, an "
+                             f"offset where the motion stopped, or a disturbance); {left_out}")
+            else:
+                warnings.append(f"{said}: beating of two modes, or a disturbance; "
+                                f"{left_out}. Excite one mode only, or check the record")
+        index = np.flatnonzero(reasons == "")
+    return release, notes, warnings
+
+
+def _check_growth(centres, y, sigma_y, index, source):
+    """Raise for an oscillation that grows from its start to its end."""
     if index.size < MIN_TURNING_POINTS:
         return
-    values = y[index]
-    smooth = _running_median(values, 5 if index.size >= 10 else 3)
+    smooth = _running_median(y[index], 5 if index.size >= 10 else 3)
     noise = _median(sigma_y[index])
     start = _median(smooth[: max(2, index.size // 10)])
     end = _median(smooth[-max(2, index.size // 10):])
@@ -136,18 +179,13 @@ def _check_decay(centres, y, sigma_y, used, source, floor=0.0):
             f"the oscillation in {source} grows (amplitude {start:.3g} at t = "
             f"{centres[index[0]]:.4g} to {end:.3g} at t = {centres[index[-1]]:.4g}): this is "
             "not a free decay. Check the record, or cut it to the decaying part.")
-    k = _rise(smooth, noise, sigma_y[index], floor)
-    if k is not None:
-        dip = int(np.argmin(smooth[:k + 1]))
-        # A rise to the largest amplitude early on, with the decay undisturbed after it:
-        # the record starts before the free decay.
-        starts_late = (smooth[k] >= smooth[0] and 2 * k < smooth.size
-                       and _rise(smooth[k:], noise, sigma_y[index[k:]], floor) is None)
-        raise RecordError(
-            f"the amplitude in {source} falls to {smooth[dip]:.3g} at t = "
-            f"{centres[index[dip]]:.4g} and rises again to {smooth[k]:.3g} at t = "
-            f"{centres[index[k]]:.4g}: "
-            + _rise_advice(starts_late, centres[index[dip]], centres[index[k]]))
+
+
+def _end_of_decay(smooth, dip, noise, sigma):
+    """The first of the smoothed amplitudes up to ``dip`` within two sigma of the dip's
+    level: where the decay reaches the level it rises from."""
+    level = smooth[dip] + 2 * np.maximum(noise, sigma[:dip + 1])
+    return int(np.flatnonzero(smooth[:dip + 1] <= level)[0])
 
 
 def _rise(smooth, noise, sigma, floor):
@@ -162,12 +200,3 @@ def _rise(smooth, noise, sigma, floor):
             and running_min[k] < smooth[0] and smooth[k] > 3 * floor):
         return k
     return None
-
-
-def _rise_advice(starts_late, dip_time, peak_time):
-    """What a rise of the amplitude means, and what to do."""
-    if starts_late:
-        return ("the free decay starts at the rise (the oscillator was held, driven or "
-                f"disturbed before it). Fit from there with `start={peak_time:.4g}`.")
-    return ("beating of two modes, or a disturbance. Excite one mode only, or fit the "
-            f"record before the rise with `end={dip_time:.4g}`.")

@@ -28,8 +28,8 @@ class TurningPoints:
     used : ndarray of bool, shape (k,)
         The points a fit should use.
     excluded_reason : tuple of str
-        "" for used points, else "before release", "noise floor", "clipped", "gap" or
-        "edge".
+        "" for used points, else "before release", "noise floor", "after the decay"
+        (after the amplitude rises again), "clipped", "gap" or "edge".
     period : float
         Oscillation period from the turning-point spacing (NaN if unknown).
     period_sigma : float
@@ -57,6 +57,9 @@ class TurningPoints:
         Start and end times of gaps in the record.
     domain : {"time", "cycle"}
     notes : tuple of str
+    warnings : tuple of str
+        What the record holds that the fit does not model (a beat or a disturbance, left
+        out of the fit).
     t_start : float
         Time of the record's first sample, where the equilibrium line starts (see
         :meth:`equilibrium_at`).
@@ -81,6 +84,7 @@ class TurningPoints:
     gaps: tuple[tuple[float, float], ...] = ()
     domain: str = "time"
     notes: tuple[str, ...] = field(default=())
+    warnings: tuple[str, ...] = field(default=())
     steady_line: object = None  # the hum subtracted before the search (mcfit.hum.SteadyLine)
     t_start: float = 0.0
 

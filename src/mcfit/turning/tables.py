@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mcfit.errors import RecordError
-from mcfit.turning.checks import _check_decay, _check_range
+from mcfit.turning.checks import _check_count, _check_range, _cut_at_rise
 from mcfit.turning.common import _median, _robust_sigma
 from mcfit.turning.equilibrium import _table_equilibrium
 from mcfit.turning.result import MIN_TURNING_POINTS, TurningPoints, _frozen
@@ -62,11 +62,12 @@ def turning_points_from_table(t, values, *, domain="time", source="record"):
     scatter = float(_robust_sigma(d2) / np.sqrt(6.0)) if d2.size >= 3 else float("nan")
     sigma = np.full(y.size, scatter)
     used = y > 0
-    reasons = tuple("" if u else "zero amplitude" for u in used)
-    _check_decay(t, y, np.where(np.isfinite(sigma), sigma, 0.0), used, source)
-    if np.count_nonzero(used) < MIN_TURNING_POINTS:
-        raise RecordError(f"only {np.count_nonzero(used)} non-zero amplitudes in {source} "
-                          f"(need {MIN_TURNING_POINTS}). Use a longer table.")
+    reasons = np.where(used, "", "zero amplitude").astype(object)
+    release, rise_notes, warnings = _cut_at_rise(
+        t, y, np.where(np.isfinite(sigma), sigma, 0.0), reasons, source)
+    notes += rise_notes
+    used = reasons == ""
+    _check_count(y, reasons, source)
     spacing = float(_median(np.diff(t)))
     if domain == "cycle":
         period = 1.0
@@ -78,6 +79,7 @@ def turning_points_from_table(t, values, *, domain="time", source="record"):
                      "half-period is unknown, so no period is given")
     return TurningPoints(
         t=_frozen(t), y=_frozen(y), sigma=_frozen(sigma), sign=_frozen(signs),
-        used=_frozen(used), excluded_reason=reasons, period=period,
+        used=_frozen(used), excluded_reason=tuple(str(r) for r in reasons), period=period,
         equilibrium=float(equilibrium), equilibrium_drift=0.0, domain=domain,
-        notes=tuple(notes), t_start=float(t[0]))
+        notes=tuple(notes), warnings=tuple(warnings), release_time=release,
+        t_start=float(t[0]))
