@@ -9,7 +9,7 @@ import numpy as np
 
 from mcfit.errors import FitError, McfitError, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
-from mcfit.fit.decay_fit import fit_model_values
+from mcfit.fit.decay_fit import fit_model_values, misfit_warning
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
@@ -154,10 +154,9 @@ def with_large_swing_warning(fit, turning: TurningPoints, degrees=False):
 def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", model=None):
     """``fit`` (of the turning points), or the waveform fit of ``record`` by the equation of
     motion when ``method`` asks for it or, for "auto", when the averaged law's predicted
-    bias exceeds :data:`mcfit.model_error.LIMIT` standard errors. The result
-    says which it is and why (``method``, ``method_reason``)."""
-
-    from mcfit.fit.waveform import fit_waveform, viscous_aicc
+    bias exceeds :data:`mcfit.model_error.LIMIT` standard errors. The waveform is fitted
+    with the damping in each physical form (:func:`fit_both_forms`). The result says
+    which it is and why (``method``, ``method_reason``); a misfit is never silent."""
     from mcfit.model_error import LIMIT, averaged_law_bias
 
     check_fit_options(method=method)
@@ -174,17 +173,64 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
     if method == "auto" and error.largest <= LIMIT:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
     x = _without_steady_line(record.t, record.x, turning.steady_line)
-    waveform = fit_waveform(record.t, x, turning, fit, criterion=criterion, forced=model)
-    if method == "auto" and viscous_aicc(record.t, x, turning, fit) <= min(
-            c.aicc for c in waveform.candidates):
-        return replace(fit, method_reason=f"{said}, but the waveform is a linear viscous "
-                       "oscillator's, whose turning points follow the averaged law exactly")
-    if method == "auto" and not describes_waveform(waveform, fit):
+    waveform = fit_both_forms(record.t, x, turning, fit, criterion=criterion, forced=model)
+    if method == "waveform":
+        return replace(waveform, method_reason="asked for")
+    if describes_waveform(waveform):
+        return replace(waveform, method_reason=f"{said}: fitted by the equation of motion")
+    if not misfit_warning(fit.reduced_chi_square, fit.n_points - 1 - len(fit.selection.terms)):
         return replace(fit, method_reason=f"{said}, but the equation of motion does not fit "
                        "the waveform: the turning-point fit is kept",
-                       warnings=fit.warnings + (_misfit_warning(waveform),))
-    why = "asked for" if method == "waveform" else f"{said}: fitted by the equation of motion"
-    return replace(waveform, method_reason=why)
+                       warnings=fit.warnings + (_misfit_warning(waveform) + "; the "
+                                                "turning-point fit is reported, biased by the "
+                                                "amount predicted",))
+    return _unresolved(replace(
+        waveform, method_reason=f"{said}: fitted by the equation of motion, which misfits "
+        "as the turning-point fit does", warnings=waveform.warnings + (
+            _misfit_warning(waveform) + f"; the turning-point fit misfits too (reduced "
+            f"chi-square {fit.reduced_chi_square:.3g}): the regimes are not resolved",)))
+
+
+# Selected models of the two forms whose AICc differ by no more than this cannot be told
+# apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
+FORM_TIE = 10.0
+
+
+def fit_both_forms(t, x, turning, start_fit, *, criterion="aicc", forced=None):
+    """The waveform fit in the form of the damping forces the record supports: Eq. 20.55's
+    amplitude forms or the velocity forms (:data:`mcfit.fit.waveform.FORMS`), by the AICc
+    of the model each selects; ``damping_form`` is "cannot tell" within
+    :data:`FORM_TIE`, and the lower one is reported."""
+    from mcfit.fit.waveform import FORMS, fit_waveform
+
+    fits = {form: fit_waveform(t, x, turning, start_fit, criterion=criterion, forced=forced,
+                               form=form)
+            for form, (_, offered) in FORMS.items() if forced is None or forced in offered}
+    if len(fits) == 1:
+        (form, only), = fits.items()
+        return replace(only, damping_form_reason="the only form with the model asked for")
+    scores = {form: _selected_aicc(fit) for form, fit in fits.items()}
+    best, other = sorted(scores, key=scores.get)
+    gap = scores[other] - scores[best]
+    names = {"amplitude": "Eq. 20.55's amplitude forms", "velocity": "the velocity forms "
+             "(viscous, sliding friction)"}
+    if gap <= FORM_TIE:
+        return replace(fits[best], damping_form="cannot tell", damping_form_reason=(
+            f"{names[best]} and {names[other]} fit the waveform equally well (AICc "
+            f"{gap:.3g} apart): the coefficients of the averaged law are those of "
+            f"{names[best]}"))
+    return replace(fits[best], damping_form_reason=(
+        f"{names[best]} fit the waveform better than {names[other]} (AICc lower by "
+        f"{gap:.3g})"))
+
+
+def _selected_aicc(fit):
+    return next(c.aicc for c in fit.candidates if c.model == fit.model)
+
+
+def _unresolved(fit):
+    """``fit`` with its regimes marked as not resolved."""
+    return replace(fit, selection=replace(fit.selection, resolved=False))
 
 
 def _predicted_bias(error, fit):
@@ -209,26 +255,20 @@ def _without_steady_line(t, x, line):
     return out
 
 
-# The waveform fit is trusted while its reduced chi-square stays below this many times the
-# larger of 1 and the turning-point fit's (the prediction of bias assumes Eq. 20.55 holds).
-MISFIT_LIMIT = 4.0
-
-
-def describes_waveform(waveform, turning_point_fit) -> bool:
-    """Whether Eq. 20.55 fits the waveform about as well as the averaged law its turning
-    points (reduced chi-squares compared; each in its own noise units)."""
+def describes_waveform(waveform) -> bool:
+    """Whether the equation of motion fits the waveform within its noise: converged, with
+    a reduced chi-square not far above 1 (:func:`mcfit.fit.decay_fit.misfit_warning`)."""
     reduced = waveform.reduced_chi_square
-    baseline = turning_point_fit.reduced_chi_square
     if not math.isfinite(reduced) or waveform.status != "ok":
         return False
-    return reduced <= MISFIT_LIMIT * max(1.0, baseline if math.isfinite(baseline) else 1.0)
+    selected = next(c for c in waveform.candidates if c.model == waveform.model)
+    return not misfit_warning(reduced, waveform.n_points - selected.n_params)
 
 
 def _misfit_warning(waveform):
-    return (f"the equation of motion (Eq. 20.55) fits the waveform with reduced chi-square "
+    return (f"the equation of motion fits the waveform with reduced chi-square "
             f"{waveform.reduced_chi_square:.3g}: the record holds something it does not "
-            "model (a damping force of another form, a disturbance, a second mode); the "
-            "turning-point fit is reported, biased by the amount predicted")
+            "model (a damping force of another form, a disturbance, a second mode)")
 
 
 def _fit_pendulum(turning, sigma, period, period_sigma, degrees, *, criterion="aicc",

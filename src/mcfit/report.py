@@ -121,6 +121,12 @@ def to_json_dict(analysis: Analysis) -> dict:
                                 **{f"{k}_stderr": _number(e) for k, e in fit.stderr.items()}}
         if getattr(fit, "bootstrap", None) is not None:
             out["bootstrap"] = _bootstrap_json(fit.bootstrap)
+        if getattr(fit, "damping_form", None) is not None:
+            out["damping_form"] = fit.damping_form
+            out["damping_form_reason"] = fit.damping_form_reason
+            out["physical"] = {name: {**entry, "value": _number(entry["value"]),
+                                      "stderr": _number(entry["stderr"])}
+                               for name, entry in fit.physical.items()}
         if getattr(fit, "angle_unit", None) is not None:  # the pendulum's law was fitted
             out["pendulum"] = {
                 "angle_unit": fit.angle_unit,
@@ -263,6 +269,29 @@ def _short(value):
     return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
+def _b_name(data):
+    return "viscous" if data.get("damping_form") == "velocity" else "hysteretic"
+
+
+def _regime_name(term, fit):
+    """The regime of ``term``; b is viscous where the velocity forms were fitted."""
+    if term == "b" and getattr(fit, "damping_form", None) == "velocity":
+        return "viscous"
+    return REGIME_NAMES[term]
+
+
+def _damping_form_lines(data) -> list[str]:
+    """The physical form of the damping forces, and their coefficients (per unit mass)."""
+    form = data.get("damping_form")
+    if form is None:
+        return []
+    lines = [f"  damping form:    {form} ({data['damping_form_reason']})"]
+    for name, entry in data["physical"].items():
+        lines.append(f"    {entry['force']:24s} {name} = "
+                     f"{_format(entry['value'], entry['stderr'])} {entry['unit']}")
+    return lines
+
+
 def _regimes_lines(fit) -> list[str]:
     """The verdict and the evidence for each kept term."""
     if fit.model == POWER:
@@ -276,11 +305,11 @@ def _regimes_lines(fit) -> list[str]:
     elif not fit.resolved and len(fit.model) == 1:
         lines = [f"  regimes present: not resolved: reported as constant Q (model b, {how})"]
     else:
-        present = ", ".join(REGIME_NAMES[k] for k in fit.model)
+        present = ", ".join(_regime_name(k, fit) for k in fit.model)
         resolved = "" if fit.resolved else "; not resolved"
         lines = [f"  regimes present: {present} (model {fit.model}, {how}{resolved})"]
     for k, p in fit.lrt_p_values.items():
-        lines.append(f"    {REGIME_NAMES[k]:11s} term: p = {p:.2g} (chance of so large a gain in "
+        lines.append(f"    {_regime_name(k, fit):11s} term: p = {p:.2g} (chance of so large a gain in "
                      "fit by noise alone)")
     return lines
 
@@ -359,13 +388,14 @@ def to_text(analysis: Analysis) -> str:
         lines.append(f"  pendulum:        large-swing correction applied (angle in "
                      f"{pendulum['angle_unit']}{period0_text}); coefficients are small-angle "
                      "values, Q = 2*pi*E/(energy lost per cycle)")
+    lines += _damping_form_lines(data)
     lines += _regimes_lines(fit)
     params = data["params"]
     unit = data.get("params_units", "per second")
     lines.append(f"  parameters ({unit}):")
     at = f"{fit.t0:.4g} s" if fit.domain == "time" else f"n = {fit.t0:.4g}"
     labels = {"y0": f"y0 (amplitude at {at})",
-              "a": "a (fluid)", "b": "b (hysteretic)", "c": "c (Coulomb)"}
+              "a": "a (fluid)", "b": f"b ({_b_name(data)})", "c": "c (Coulomb)"}
     for k in ("y0",) if fit.model == POWER else ("y0", "a", "b", "c"):
         lines.append(f"    {labels[k]:28s} {_format(params[k]['value'], params[k]['stderr'])}")
     per_cycle = data.get("params_per_cycle")

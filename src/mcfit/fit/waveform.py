@@ -8,6 +8,12 @@ record. :func:`fit_waveform` fits x(t) = e0 + e1*(t - t0) + u(t), u the
 solution of Eq. 20.55 from amplitude y0 and phase theta0 at t0 with frequency omega, for
 the eight candidate models, started from the turning-point fit, and chooses among them
 with :func:`mcfit.fit.selection.select_model` as the turning-point fit does.
+
+Each term has two physical forms with the same averaged law (THEORY.md section 9):
+Eq. 20.55's amplitude forms (``form="amplitude"``) and the velocity forms, viscous
+2*beta*x' for b and sliding friction mu*sgn(x') for c (``form="velocity"``, exact in
+closed form by :func:`mcfit.viscous_motion.viscous_motion`; quadratic drag for a has none
+and is not offered). At low Q they differ at order 1/Q; :data:`FORMS` lists them.
 """
 
 from __future__ import annotations
@@ -21,13 +27,15 @@ from scipy import optimize
 from scipy.stats import median_abs_deviation  # lmfit imports scipy.stats anyway
 
 from mcfit import decay
+from mcfit.errors import FitError
 from mcfit.fit import uncertainty
 from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
 from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
 from mcfit.fit.selection import LRT_ALPHA, select_model
 from mcfit.phase_plane import phase_plane_differences
+from mcfit.viscous_motion import coulomb_force, viscous_motion
 
-__all__ = ["fit_waveform"]
+__all__ = ["FORMS", "fit_waveform"]
 # Nuisance parameters of the waveform besides y0: phase, frequency, offset, drift.
 _NUISANCE = ("theta0", "omega", "e0", "e1")
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
@@ -90,9 +98,39 @@ class _Waveform:
         return motion + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
 
 
+class _VelocityWaveform(_Waveform):
+    """As :class:`_Waveform` for the velocity forms: viscous b and sliding friction c, the
+    motion in closed form, the Jacobian by forward differences."""
+
+    def _with_jacobian(self, p):
+        tau = self.t - self.t0
+        steps = 1e-7 * np.maximum(np.abs(p), self.typical)
+        x = self._x(tau, p)
+        jacobian = np.empty((self.t.size, p.size))
+        for i in (0, 1, 2, *range(5, p.size)):
+            moved = p.copy()
+            moved[i] += steps[i]
+            jacobian[:, i] = (self._x(tau, moved) - x) / steps[i]
+        jacobian[:, 3] = 1.0
+        jacobian[:, 4] = tau
+        return x + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
+
+    def _x(self, tau, p):
+        terms = dict(zip(self.terms, p[5:]))
+        beta = min(terms.get("b", 0.0), 0.99 * p[2])
+        return viscous_motion(tau, p[0], p[1], p[2], beta, terms.get("c", 0.0))
+
+
+# The physical forms of the damping terms: the waveform model of each and the candidate
+# models it offers (the velocity forms have no fluid term).
+FORMS = {"amplitude": (_Waveform, MODELS),
+         "velocity": (_VelocityWaveform, tuple(m for m in MODELS if "a" not in m))}
+
+
 def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
-                 forced=None):
-    """Fit the samples between the first and the last used turning point by Eq. 20.55.
+                 forced=None, form="amplitude"):
+    """Fit the samples between the first and the last used turning point by the equation
+    of motion with the damping in ``form`` (a key of :data:`FORMS`).
 
     Parameters
     ----------
@@ -103,19 +141,25 @@ def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
     start_fit : DecayFit
         The turning-point fit, whose candidates start the waveform candidates.
     criterion, alpha, forced
-        As for :func:`mcfit.fit.fit_decay`.
+        As for :func:`mcfit.fit.fit_decay`; a ``forced`` model the form does not offer
+        raises :class:`mcfit.errors.FitError`.
 
     Returns
     -------
     DecayFit
-        With ``method == "waveform"``; values, errors and Q from the waveform fit.
+        With ``method == "waveform"`` and ``damping_form == form``; values, errors and Q
+        from the waveform fit, ``physical`` the coefficients of the forces.
     """
+    kind, offered = FORMS[form]
+    if forced is not None and forced not in offered:
+        raise FitError(f"the {form} forms have no model {forced!r}", option="model")
     tw, xw, t0, nuisance = _window(t, x, turning, start_fit)
     noise = sample_noise(xw)
     starts = {c.model: c.values for c in start_fit.candidates}
-    models = MODELS if forced is None else tuple(m for m in starts)
+    models = (offered if forced is None
+              else tuple(m for m in starts if m in offered))
     candidates, solutions = {}, {}
-    waveforms = {model: _Waveform(tw, xw, t0, terms_of(model), noise) for model in models}
+    waveforms = {model: kind(tw, xw, t0, terms_of(model), noise) for model in models}
     likely = _likely(start_fit, models)
     for model in models:
         values = starts.get(model, starts.get(start_fit.model))
@@ -129,30 +173,8 @@ def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
             candidates[model], solutions[model] = _ranked(
                 waveforms[model], solutions[model].x, _TOLERANCES, solutions[model].nfev)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
-    return _reported(selection, candidates, tw, xw, t0, noise, start_fit)
-
-
-def viscous_aicc(t, x, turning, start_fit):
-    """AICc of the linear viscous oscillator x = e0 + e1*tau + y0*exp(-beta*tau)*cos(w*tau +
-    theta0) (tau = t - t0) fitted to the same samples as :func:`fit_waveform`, in the same
-    noise units: comparable with its candidates' AICc. Its turning points follow the
-    averaged law with b = beta exactly, at any Q."""
-    tw, xw, t0, nuisance = _window(t, x, turning, start_fit)
-    noise = sample_noise(xw)
-    tau = tw - t0
-    rate = start_fit.values["b"] + start_fit.values["a"] * start_fit.values["y0"]
-
-    def residual(p):
-        y0, theta0, omega, e0, e1, beta = p
-        return (e0 + e1 * tau + y0 * np.exp(-beta * tau) * np.cos(omega * tau + theta0)
-                - xw) / noise
-
-    start = np.array([start_fit.values["y0"]] + nuisance + [rate])
-    lower, upper = _bounds(start[:5], ("b",))
-    result = optimize.least_squares(residual, np.clip(start, lower, upper),
-                                    bounds=(lower, upper), method="trf", x_scale="jac",
-                                    **_TOLERANCES)
-    return information_criteria(float(2 * result.cost), tw.size, start.size)[0]
+    return _reported(selection, candidates, kind(tw, xw, t0, selection.terms, noise),
+                     start_fit, form)
 
 
 def _window(t, x, turning, start_fit):
@@ -242,12 +264,11 @@ def _candidate(waveform, p, chi_square, success, evaluations, jacobian):
                      correlation, np.asarray(p), None)
 
 
-def _reported(selection, candidates, tw, xw, t0, noise, start_fit):
+def _reported(selection, candidates, waveform, start_fit, form):
     """The selected model refitted with lmfit; errors, Q and warnings as a DecayFit."""
     from mcfit.fit.decay_fit import diagnose, tie_warning  # noqa: PLC0415 (import cycle)
 
-    terms = selection.terms
-    waveform = _Waveform(tw, xw, t0, terms, noise)
+    terms, tw, t0, noise = selection.terms, waveform.t, waveform.t0, waveform.noise
     start = candidates[selection.model].internal
     waveform.typical = _typical(start, terms)
     dof = tw.size - start.size
@@ -304,7 +325,32 @@ def _reported(selection, candidates, tw, xw, t0, noise, start_fit):
         n_points=tw.size, rms=float(noise * np.sqrt(np.mean(residual**2))),
         reduced_chi_square=chi_square / dof if dof > 0 else math.nan, selection=selection,
         y_fit=y_fit, q=q, q_stderr=q_stderr, q_parts=q_parts, q_summary=q_summary,
-        q_lower_bound=q_bound, bootstrap=None, warnings=tuple(warnings), method="waveform")
+        q_lower_bound=q_bound, bootstrap=None, warnings=tuple(warnings), method="waveform",
+        damping_form=form, physical=physical_coefficients(form, terms, values, stderr, omega))
+
+
+# Each form's force per unit mass for each term: (name, force, coefficient from the
+# averaged law's (value, omega), unit; U the signal's unit). THEORY.md section 9.
+_FORCES = {
+    "amplitude": {"a": ("a", "(pi*w/2)*a*A**2*sgn(x')", lambda v, w: v, "1/(U*s)"),
+                  "b": ("b", "(pi*w/2)*b*A*sgn(x')", lambda v, w: v, "1/s"),
+                  "c": ("mu", "mu*sgn(x')", coulomb_force, "U/s**2")},
+    "velocity": {"b": ("beta", "2*beta*x'", lambda v, w: v, "1/s"),
+                 "c": ("mu", "mu*sgn(x')", coulomb_force, "U/s**2")},
+}
+
+
+def physical_coefficients(form, terms, values, stderr, omega):
+    """The coefficients of the forces of ``terms`` in ``form`` (per unit mass): name ->
+    {"term", "value", "stderr", "force", "unit"}, U the signal's unit."""
+    found = {}
+    for term in terms:
+        name, force, coefficient, unit = _FORCES[form][term]
+        error = stderr.get(term)
+        found[name] = {"term": term, "value": coefficient(values[term], omega),
+                       "stderr": None if error is None else coefficient(error, omega),
+                       "force": force, "unit": unit}
+    return found
 
 
 def _vector(params, names):
