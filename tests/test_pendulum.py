@@ -135,7 +135,26 @@ def test_without_pendulum_a_fluid_term_from_the_geometry_is_named():
     assert "a" in fit.model
     [warning] = [w for w in fit.warnings if "`pendulum`" in w]
     assert "the period grows with amplitude as a pendulum's does" in warning
-    assert "viscous damping 1.06 times faster" in warning
+    assert "a fluid term that may be this geometry alone" in warning
+
+
+def test_without_pendulum_a_b_biased_by_the_swing_is_named():
+    """Q = 50 released at 0.3 rad, noise 1e-3 rad: the small-angle law's b comes out
+    several standard errors above the viscous rate; no fluid term shows, and the warning
+    fired only for one."""
+    beta = OMEGA / 100
+    t = np.arange(0.0, 60 * PERIOD, PERIOD / 50)
+    solution = integrate.solve_ivp(
+        lambda _, s: [s[1], -2 * beta * s[1] - OMEGA**2 * math.sin(s[0])], (0.0, t[-1]),
+        [0.3, 0.0], method="DOP853", rtol=1e-11, atol=1e-13, t_eval=t)
+    theta = solution.y[0] + 1e-3 * np.random.default_rng(1).standard_normal(t.size)
+    fit = fit_turning_points(find_turning_points(t, theta))
+    assert fit.model == "b"
+    z = (fit.values["b"] - beta) / fit.stderr["b"]
+    assert z > 2
+    [warning] = [w for w in fit.warnings if "`pendulum`" in w]
+    predicted = float(warning.split("b about ")[1].split()[0])
+    assert "standard errors above the viscous rate" in warning and 1 < predicted < 2 * z
 
 
 def test_no_warning_for_a_linear_oscillator():

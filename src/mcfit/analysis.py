@@ -146,8 +146,12 @@ def with_large_swing_warning(fit, turning: TurningPoints, degrees=False):
         return fit
     scale = RADIANS_PER_DEGREE if degrees else 1.0
     values = {"a": fit.values["a"] / scale, "b": fit.values["b"], "c": fit.values["c"] * scale}
-    warning = large_swing_warning(values, fit.model, turning.y[turning.used] * scale,
-                                  turning.period_drift, turning.period_drift_sigma)
+    used = turning.used
+    sigma = np.where(np.isfinite(turning.sigma[used]) & (turning.sigma[used] > 0),
+                     turning.sigma[used], 1.0) * scale
+    warning = large_swing_warning(values, fit.model, turning.t[used], turning.y[used] * scale,
+                                  sigma, turning.period_drift, turning.period_drift_sigma,
+                                  fit.stderr.get("b"))
     return fit if warning is None else replace(fit, warnings=fit.warnings + (warning,))
 
 

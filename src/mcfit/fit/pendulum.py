@@ -572,23 +572,26 @@ def _quality(theta, sensitivity, internal, free, covariance, span, period0, peri
     return q, np.where(np.isfinite(q_stderr), q_stderr, np.nan), q_parts
 
 
-def large_swing_warning(values, model, amplitudes, period_drift, period_drift_sigma):
-    """A warning when a fluid term was reported for a record whose period grows with
-    amplitude as a pendulum's does, else None.
+def large_swing_warning(values, model, times, amplitudes, sigma, period_drift,
+                        period_drift_sigma, b_stderr=None):
+    """A warning when the small-angle law was fitted to a record whose period grows with
+    amplitude as a pendulum's does, and the geometry of sin(theta) then biases what was
+    found: a fluid term reported, or b biased by more than its standard error; else None.
 
     ``values`` are the fitted (small-angle law) y0, a, b, c and ``amplitudes`` the used
-    turning-point amplitudes, both in radians; ``period_drift`` is the relative change of
+    turning-point amplitudes at ``times`` with standard deviations ``sigma``, in radians;
+    ``b_stderr`` is b's standard error; ``period_drift`` is the relative change of
     the period from the smallest to the largest amplitude, with its standard error. The
     pendulum's drift is T(theta_max)/T(theta_min) - 1; when the measured one matches it
-    (within 3 standard errors and a third of itself) and is clearly > 0, the geometry of
-    sin(theta) alone makes viscous damping faster at the largest amplitude by
-    G1(theta_max)/G1(theta_min), which the fit of the small-angle law reads as a fluid term.
+    (within 3 standard errors and a third of itself) and is clearly > 0, viscous damping
+    decays the swing G1(theta) times as fast as the small-angle law says (1.06 at 1 rad;
+    THEORY.md section 8), which biases the small-angle b by :func:`_viscous_bias`.
     """
-    if "a" not in model or not all(map(math.isfinite, (period_drift, period_drift_sigma))):
-        return None
     amplitudes = np.asarray(amplitudes, dtype=float)
-    amplitudes = amplitudes[np.isfinite(amplitudes) & (amplitudes > 0)]
-    if amplitudes.size < 2:
+    kept = np.isfinite(amplitudes) & (amplitudes > 0)
+    times, amplitudes = np.asarray(times, dtype=float)[kept], amplitudes[kept]
+    sigma = np.broadcast_to(np.asarray(sigma, dtype=float), kept.shape)[kept]
+    if amplitudes.size < 2 or not all(map(math.isfinite, (period_drift, period_drift_sigma))):
         return None
     low, high = float(np.min(amplitudes)), float(np.max(amplitudes))
     if not high < _LARGEST_ANGLE:
@@ -597,18 +600,39 @@ def large_swing_warning(values, model, amplitudes, period_drift, period_drift_si
     # amplitude, times the amplitude range: the pendulum's, measured the same way.
     ratio = period_ratio(amplitudes)
     expected = float(np.polyfit(amplitudes, ratio, 1)[0] * (high - low) / np.mean(ratio))
-    mismatch = abs(period_drift - expected)
-    if not (expected > 3 * period_drift_sigma and mismatch <= 3 * period_drift_sigma
-            + expected / 3):
+    if not (expected > 3 * period_drift_sigma
+            and abs(period_drift - expected) <= 3 * period_drift_sigma + expected / 3):
         return None
-    geometric = float(geometric_factors(high)[1] / geometric_factors(low)[1])
-    rest = values["b"] + values["c"] / high
-    found = (f"the fluid term found raises the decay rate there by a factor "
-             f"{1.0 + values['a'] * high / rest:.3g}" if rest > 0 else
-             f"the fluid term found makes the decay rate {high / low:.3g} "
-             "times faster there than at the smallest")
+    # With a fluid term kept, that term takes up the geometry instead.
+    viscous = "b" in model and "a" not in model
+    bias = _viscous_bias(values["b"], times, amplitudes, sigma) if viscous else 0.0
+    b_biased = b_stderr is not None and abs(bias) > b_stderr > 0
+    if "a" not in model and not b_biased:
+        return None
+    effects = []
+    if b_biased:
+        effects.append(f"b about {bias / b_stderr:.2g} standard errors above the viscous "
+                       "rate")
+    if "a" in model:
+        effects.append("a fluid term that may be this geometry alone")
     return (f"the period grows with amplitude as a pendulum's does ({100 * period_drift:+.2g} "
             f"%, {100 * expected:+.2g} % expected for a swing of {high:.3g} rad): the geometry "
-            f"of sin(theta) alone makes viscous damping {geometric:.3g} times faster at the "
-            f"largest amplitude than at the smallest, and {found}. If the signal is a "
-            "pendulum's angle, fit it with `pendulum`")
+            f"of sin(theta) makes viscous damping {geometric_factors(high)[1]:.4g} times as "
+            f"fast at the largest swing as the small-angle law says, which gives "
+            f"{' and '.join(effects)}. If the signal is a pendulum's angle, fit it with "
+            "`pendulum`")
+
+
+def _viscous_bias(b, times, amplitudes, sigma):
+    """How far the small-angle law's b, fitted to these amplitudes, lies above the viscous
+    rate b of a pendulum: its decay d(theta0)/dt = -b*theta0*G1(theta0) integrated from the
+    first amplitude, then the weighted straight line through its logarithm."""
+    from scipy.integrate import solve_ivp
+
+    span = (float(times[0]), float(times[-1]))
+    decay = solve_ivp(lambda _, y: -b * y * geometric_factors(y)[1], span, [amplitudes[0]],
+                      t_eval=times, rtol=1e-10, atol=1e-14)
+    swing = decay.y[0]
+    weights = swing / sigma  # polyfit squares them: the weights of ln(y) are (y/sigma)**2
+    slope = np.polyfit(times, np.log(swing), 1, w=weights)[0]
+    return float(-slope - b)
