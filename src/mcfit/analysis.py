@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from mcfit.errors import FitError, McfitError, UsageError
+from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.decay_fit import fit_model_values, misfit_warning
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
@@ -339,6 +339,10 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     try:
         record = crop_record(record, start, end)
         turning = turning_points_of(record)
+    except TooFewTurningPoints as error:
+        if not (_waveform_fit_possible(record, pendulum, method) and bootstrap == 0):
+            return failed_analysis(source, str(error), record=record)
+        return _few_swings_analysis(record, error, criterion=criterion, model=model)
     except McfitError as error:
         message = str(error)
         if (start, end) != (None, None) and not isinstance(error, UsageError):
@@ -362,3 +366,29 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     error = None if fit.message is None else f"{source}: {fit.message}"
     return Analysis(source=source, status=fit.status, error=error, record=record,
                     turning=turning, fit=fit)
+
+
+def _waveform_fit_possible(record, pendulum, method):
+    return (record.kind == "waveform" and record.domain == "time" and not pendulum
+            and method != "turning-points")
+
+
+def _few_swings_analysis(record, error, *, criterion, model):
+    """The waveform fit of a record with too few turning points for the averaged law,
+    started from a damped cosine (:mod:`mcfit.fit.few_swings`); ``error`` (the missing
+    turning points) where even that cannot be fitted."""
+    from mcfit.fit.few_swings import few_swings_start
+
+    try:
+        turning, start = few_swings_start(record.t, record.x, record.source)
+        waveform = fit_both_forms(record.t, record.x, turning, start, criterion=criterion,
+                                  forced=model)
+    except McfitError:
+        return failed_analysis(record.source, str(error), record=record)
+    fit = replace(waveform, method_reason=f"only {turning.count} turning points stand above "
+                  "the noise, too few for the averaged law: fitted by the equation of motion")
+    if not describes_waveform(fit):
+        fit = _unresolved(replace(fit, warnings=fit.warnings + (_misfit_warning(fit),)))
+    error = None if fit.message is None else f"{record.source}: {fit.message}"
+    return Analysis(source=record.source, status=fit.status, error=error, record=record,
+                    turning=replace(turning, period=2 * math.pi / fit.omega), fit=fit)

@@ -9,8 +9,8 @@ from __future__ import annotations
 import re
 import unicodedata
 
-__all__ = ["McfitError", "InputError", "RecordError", "FitError", "UsageError", "OutputError",
-           "ClosedOutputError", "escape_controls", "printable"]
+__all__ = ["McfitError", "InputError", "RecordError", "TooFewTurningPoints", "FitError",
+           "UsageError", "OutputError", "ClosedOutputError", "escape_controls", "printable"]
 
 # Longest message shown on a terminal; the middle of a longer one is cut, so that both the
 # cause (at the start) and the fix (at the end) stay.
@@ -37,6 +37,10 @@ class InputError(McfitError):
 
 class RecordError(McfitError):
     """A record was read but holds no usable decay (too few turning points, beating...)."""
+
+
+class TooFewTurningPoints(RecordError):
+    """Fewer turning points than a fit of the averaged law needs."""
 
 
 class FitError(McfitError):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mcfit.errors import RecordError
+from mcfit.errors import RecordError, TooFewTurningPoints
 from mcfit.turning.common import SAMPLES_PER_CYCLE, _median, _robust_sigma, _running_median
 from mcfit.turning.result import MIN_TURNING_POINTS
 
@@ -61,7 +61,7 @@ def _check_count(y, reasons, source):
     """RecordError when fewer than MIN_TURNING_POINTS turning points are usable."""
     n_used = int(np.count_nonzero(reasons == ""))
     if n_used < MIN_TURNING_POINTS:
-        raise RecordError(
+        raise TooFewTurningPoints(
             f"only {n_used} usable turning points in {source} (need {MIN_TURNING_POINTS}): "
             f"{y.size} found, {y.size - n_used} excluded ({_reason_summary(reasons)}). Use a "
             "longer record, or check the signal column and the noise.")

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mcfit.errors import RecordError
+from mcfit.errors import RecordError, TooFewTurningPoints
 from mcfit.turning.equilibrium import _equilibrium_correction
 from mcfit.turning.period import _period_estimate
 from mcfit.turning.release import _held_crests
@@ -105,8 +105,9 @@ def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, sourc
     centres = t[best[inside]]
     signs = run_sign[inside]
     if centres.size < MIN_TURNING_POINTS:
-        raise RecordError(f"only {centres.size} turning points found in {source} (need "
-                          f"{MIN_TURNING_POINTS}). Use a record of several cycles.")
+        raise TooFewTurningPoints(f"only {centres.size} turning points found in {source} "
+                                  f"(need {MIN_TURNING_POINTS}). Use a record of several "
+                                  "cycles.")
     return centres.astype(np.float64), signs
 
 
