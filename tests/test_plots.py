@@ -335,3 +335,41 @@ def test_curves_differ_in_dash_pattern_not_colour_alone():
                  if not line.get_label().startswith("_") and line.get_linestyle() != "None"]
         dashes = [(line.get_linestyle(), str(line._unscaled_dash_pattern)) for line in lines]
         assert len(lines) >= 4 and len(set(dashes)) == len(lines), name
+
+
+def _box_text(figure):
+    return next(t.get_text() for a in figure.axes for t in a.texts
+                if "reduced chi-square" in t.get_text())
+
+
+def test_the_box_counts_samples_for_a_waveform_fit_and_turning_points_otherwise():
+    path = str(ROOT / "sample_data" / "capstone_runs.csv")
+    waveform = mcfit.analyse_file(path, run=4, method="waveform")
+    assert waveform.fit.method == "waveform" and waveform.fit.n_points > waveform.turning.count
+    box = _box_text(waveform.figure(panels="record"))
+    assert f"{waveform.fit.n_points} samples, reduced chi-square" in box
+    assert "turning points" not in box
+    crests = mcfit.analyse_file(path, run=4, method="turning-points")
+    box = _box_text(crests.figure(panels="record"))
+    assert f"{crests.turning.count} turning points, reduced chi-square" in box
+
+
+def test_a_crest_left_out_before_the_release_is_drawn_on_the_record():
+    """A pendulum held aside at 20 (plus an offset) for 3 s, then let go: the crest left out
+    before the release is drawn where the record is at its time, within the signal's range,
+    not at its half-cycle fit's magnitude above it; the used ones at their amplitudes."""
+    t = np.arange(0.0, 30.0, 0.02)
+    s = np.clip(t - 3.0, 0.0, None)
+    x = decay.amplitude(s, 20.0, 0.002, 0.03, 0.04) * np.cos(2 * np.pi * s)
+    x[t < 3.0] = 20.0
+    x += 0.3 + np.random.default_rng(1).normal(0.0, 0.05, t.size)
+    analysis = mcfit.analyse(t, x, model="abc", method="turning-points")
+    turning = analysis.turning
+    left_out = ~turning.used
+    assert "before release" in turning.excluded_reason
+    view = record_view(analysis)
+    assert np.all(view.turning_x[left_out] <= x.max())
+    np.testing.assert_allclose(view.turning_x[left_out], np.interp(turning.t[left_out], t, x))
+    used = turning.used
+    np.testing.assert_allclose(view.turning_x[used], turning.equilibrium_at(turning.t[used])
+                               + turning.sign[used] * turning.y[used])

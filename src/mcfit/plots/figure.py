@@ -115,8 +115,9 @@ def summary_text(fit: DecayFit | PowerLawFit, view) -> str:
                      f"min {q['min']:.4g}, max {q['max']:.4g}")
     elif getattr(fit, "q_lower_bound", None) is not None:
         lines.append(f"Q > {fit.q_lower_bound:.2g} (95 %)")
-    lines.append(f"{fit.n_points} turning points, reduced chi-square "
-                 f"{fit.reduced_chi_square:.3g}")
+    # A waveform fit's points are the record's samples, not its turning points.
+    points = "samples" if getattr(fit, "method", None) == "waveform" else "turning points"
+    lines.append(f"{fit.n_points} {points}, reduced chi-square {fit.reduced_chi_square:.3g}")
     if view.unit is None and fit.model not in (POWER, NONE):
         lines.append("U: the signal's unit (not named in the record)")
     return "\n".join(lines)
