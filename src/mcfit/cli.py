@@ -357,10 +357,12 @@ def _column(value):
                    + " (qamp: Q against amplitude; backbone: period against amplitude) "
                    "[default: record,amplitude,q,rate].")
 @click.option("--figsize", metavar="W,H", help="The figure's size in inches, e.g. 12,9.")
+@click.option("--dpi", type=click.IntRange(min=20, max=2400), metavar="N",
+              help="Resolution of a PNG figure in dots per inch [default: 110].")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
         bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs, dask,
         turning_points_out, start, end, run, angle_from, pendulum, degrees, unit, title,
-        panels, figsize):
+        panels, figsize, dpi):
     if dask is not None and jobs > 1:
         raise UsageError("give --dask ADDRESS or --jobs N, not both: with --dask the "
                          "cluster's workers fit the records.")
@@ -382,7 +384,7 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     if plot_file is not None:
         check_plot_name(plot_file)
     figure_options = _figure_options(plot_file or plot_dir, unit=unit, title=title,
-                                     panels=panels, figsize=figsize)
+                                     panels=panels, figsize=figsize, dpi=dpi)
     options = dict(time_col=_column(time_col), signal_col=_column(signal_col),
                    sheet=_column(sheet), rate=rate, kind=input_kind, domain=domain,
                    criterion=criterion, model=model,

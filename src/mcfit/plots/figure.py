@@ -11,15 +11,18 @@ from mcfit.fit import NONE, POWER, REGIME_NAMES, DecayFit, PowerLawFit
 from mcfit.options import DEFAULT_PANELS, check_plot_name, parse_figsize, parse_panels
 from mcfit.plots.against_amplitude import draw_backbone, draw_q_amplitude, draw_rate
 from mcfit.plots.against_time import draw_amplitudes, draw_q, draw_record
+from mcfit.plots.legends import place_legends
 from mcfit.plots.view import record_view
 
-__all__ = ["report_figure", "plot_record", "save_figure", "figure_size", "summary_text"]
+__all__ = ["DPI", "report_figure", "plot_record", "save_figure", "figure_size", "summary_text"]
 
 _DRAW = {"record": draw_record, "q": draw_q, "rate": draw_rate, "qamp": draw_q_amplitude,
          "backbone": draw_backbone}
-# Inches: the width of the two columns with their legends, the height of a row of panels
+# Inches: the width of the two columns (legends inside or under them), the height of a row of panels
 # and of the strip under the amplitudes (residuals beside the parameter box).
 _WIDTH, _ROW, _STRIP = 13.0, 4.0, 1.6
+# Dots per inch of a PNG figure unless told otherwise.
+DPI = 110
 
 
 def figure_size(panels) -> tuple[float, float]:
@@ -77,6 +80,7 @@ def report_figure(view, fit: DecayFit | PowerLawFit, panels=DEFAULT_PANELS,
     summary.text(0.0, 1.0, summary_text(fit, view), va="top", ha="left", family="monospace",
                  fontsize=9, transform=summary.transAxes)
     figure.suptitle(view.title, fontsize=13)
+    place_legends(figure)
     return figure
 
 
@@ -131,14 +135,15 @@ def plot_record(analysis, ax=None, unit=None):
     return ax
 
 
-def save_figure(figure: Figure, path) -> None:
-    """Write the figure whole or not at all (temporary file, then rename); format from suffix."""
+def save_figure(figure: Figure, path, dpi=None) -> None:
+    """Write the figure whole or not at all (temporary file, then rename); format from
+    suffix. ``dpi`` is a PNG's dots per inch [default: :data:`DPI`]."""
     check_plot_name(path)
     path = Path(path)
     suffix = path.suffix.lower()
     temporary = temporary_beside(path)
     try:
-        figure.savefig(temporary, format=suffix.lstrip("."), dpi=110)
+        figure.savefig(temporary, format=suffix.lstrip("."), dpi=dpi or DPI)
         replace_atomically(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
