@@ -25,16 +25,16 @@ _ALONG, _VERTICES = 400, 5000
 _MARGIN = 0.06
 
 
-def place_legend(axes, below=True) -> None:
+def place_legend(axes, below=True) -> bool:
     """The legend of ``axes``' labelled artists on its emptiest inside spot, or under the
     axes (below the tick labels and the axis label) when none is empty and ``below``; no
     legend when nothing is labelled. Place it after the data, ranges, scales and labels
-    are set."""
+    are set. Returns whether the legend went under the axes."""
     handles, labels = axes.get_legend_handles_labels()
     if axes.get_legend() is not None:
         axes.get_legend().remove()
     if not handles:
-        return
+        return False
     legend = axes.legend(handles, labels, loc="upper right", **LEGEND_STYLE)
     frame = axes.get_window_extent()
     box = legend.get_window_extent()
@@ -47,21 +47,25 @@ def place_legend(axes, below=True) -> None:
     legend.remove()
     if not below or (size[0] < 1 and size[1] < 1 and covered[spot] < _EMPTY):
         axes.legend(handles, labels, loc=spot, **LEGEND_STYLE)
-    else:
-        _legend_below(axes, handles, labels)
+        return False
+    _legend_below(axes, handles, labels)
+    return True
 
 
 def place_legends(figure) -> None:
     """:func:`place_legend` again on every axes with a legend, with the figure laid out
     (the panels placed theirs before the layout fixed their sizes); all inside if the
     legends under the axes leave a small figure no room for its panels."""
-    figure.draw_without_rendering()
+    engine = figure.get_layout_engine()
+    if engine is None:
+        return
+    engine.execute(figure)  # the layout only: no line of the record is drawn
     with_legend = [axes for axes in figure.axes if axes.get_legend() is not None]
-    for axes in with_legend:
-        place_legend(axes)
+    if not any([place_legend(axes) for axes in with_legend]):
+        return
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        figure.draw_without_rendering()
+        engine.execute(figure)
     if any("collapsed" in str(warning.message) for warning in caught):
         for axes in with_legend:
             place_legend(axes, below=False)
@@ -88,41 +92,49 @@ def _spot_box(spot, size, pads):
 
 
 def _covered(ink, box):
+    """The drawn things under ``box``: each counted as the fraction of its points there."""
+    (x, y), weight = ink
     x0, y0, x1, y1 = box
-    return sum(float(np.mean((p[:, 0] >= x0) & (p[:, 0] <= x1) & (p[:, 1] >= y0)
-                             & (p[:, 1] <= y1))) for p in ink if p.size)
+    return float(np.sum(weight[(x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)]))
 
 
 def _ink(axes):
-    """What is drawn in ``axes``, as point sets in fractions of the axes: each line's
-    vertices and points along it, each band's outline, each note's box."""
+    """What is drawn in ``axes``, as points in fractions of the axes, each weighted by
+    1/(points of its artist): each line's vertices and points along it, each band's
+    outline, each note's box. Returns ((x, y), weight)."""
     to_axes = axes.transAxes.inverted()
     found = []
     for line in axes.lines:
         if line.get_visible():
-            xy = line.get_transform().transform(line.get_xydata())
-            found.append(_points(to_axes.transform(xy), line.get_linestyle() != "None"))
+            xy = line.get_xydata()
+            xy = xy[:: xy.shape[0] // _VERTICES + 1]  # a long record: a sample suffices
+            xy = to_axes.transform(line.get_transform().transform(xy))
+            found.append(_points(xy, line.get_linestyle() != "None"))
     for artist in list(axes.collections) + list(axes.patches):
         if not artist.get_visible():
             continue
         paths = artist.get_paths() if isinstance(artist, Collection) else [artist.get_path()]
-        transform = artist.get_transform()
-        for path in paths:
-            found.append(_points(to_axes.transform(transform.transform(path.vertices)), True))
+        if not paths:
+            continue
+        # One outline (a band) is followed along; many paths (error bars) by their ends.
+        xy = np.concatenate([path.vertices for path in paths])
+        xy = to_axes.transform(artist.get_transform().transform(xy))
+        found.append(_points(xy, len(paths) == 1))
     for text in axes.texts:
         if text.get_visible() and text.get_text():
             x0, y0, x1, y1 = to_axes.transform(text.get_window_extent()).ravel()
             grid = np.mgrid[x0:x1:8j, y0:y1:8j].reshape(2, -1).T
             found.append(grid)
-    return found
+    found = [points for points in found if points.size] or [np.empty((0, 2))]
+    weight = np.concatenate([np.full(len(points), 1.0 / max(len(points), 1))
+                             for points in found])
+    return np.concatenate(found).T, weight
 
 
 def _points(xy, joined):
     """Finite vertices of ``xy`` (at most _VERTICES of them) and, when ``joined``, points
     evenly spaced along the polyline through them."""
     xy = xy[np.all(np.isfinite(xy), axis=1)]
-    if xy.shape[0] > _VERTICES:
-        xy = xy[:: xy.shape[0] // _VERTICES + 1]
     if not joined or xy.shape[0] < 2:
         return xy
     length = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
