@@ -7,12 +7,13 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from mcfit.files import replace_atomically, temporary_beside
-from mcfit.fit import NONE, POWER, REGIME_NAMES, DecayFit, PowerLawFit
+from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS, DecayFit, PowerLawFit
 from mcfit.options import DEFAULT_PANELS, check_plot_name, parse_figsize, parse_panels
 from mcfit.plots.against_amplitude import draw_backbone, draw_q_amplitude, draw_rate
 from mcfit.plots.against_time import draw_amplitudes, draw_q, draw_record
 from mcfit.plots.legends import place_legends
 from mcfit.plots.view import record_view
+from mcfit.report import coefficient_units
 
 __all__ = ["DPI", "report_figure", "plot_record", "save_figure", "figure_size", "summary_text"]
 
@@ -96,7 +97,6 @@ def _verdict(fit) -> str:
 def summary_text(fit: DecayFit | PowerLawFit, view) -> str:
     """The parameter box: the verdict, the coefficients in the record's units, Q."""
     per = "s" if fit.domain == "time" else "cycle"
-    u = view.unit_symbol
     lines = [_verdict(fit) + (" (pendulum law)" if hasattr(fit, "small_angle_period")
                               else "")]
     if fit.model == POWER:
@@ -104,8 +104,9 @@ def summary_text(fit: DecayFit | PowerLawFit, view) -> str:
         lines.append(f"dy/d{per} = -k*y^n: n = {v['n']:.3f} +- {e['n']:.2g}, "
                      f"k = {v['k']:.4g}")
     else:
-        for key, label in (("a", f"a (1/({u}*{per}))"), ("b", f"b (1/{per})"),
-                           ("c", f"c ({u}/{per})")):
+        units = coefficient_units(view.unit, view.time_unit)
+        for key in TERMS:
+            label = f"{key} ({units[key]})"
             value, error = fit.values[key], fit.stderr[key]
             if key in fit.selection.terms:
                 lines.append(f"{label:18s} {value:.4g} +- {error:.2g}" if error else
