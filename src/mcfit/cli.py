@@ -641,7 +641,8 @@ Examples:
 
 
 @cli.command("bench", help=_BENCH_HELP, short_help="Benchmark integrators, fits and throughput.")
-@click.option("--full", is_flag=True, help="Run the whole grid (about an hour) instead of the quick one (about two "
+@click.option("--full", is_flag=True,
+              help="Run the whole grid (about an hour) instead of the quick one (about two "
                    "minutes).")
 @click.option("--section", "sections", multiple=True,
               type=click.Choice(BENCH_SECTIONS),

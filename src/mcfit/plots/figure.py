@@ -19,8 +19,8 @@ __all__ = ["DPI", "report_figure", "plot_record", "save_figure", "figure_size", 
 
 _DRAW = {"record": draw_record, "q": draw_q, "rate": draw_rate, "qamp": draw_q_amplitude,
          "backbone": draw_backbone}
-# Inches: the width of the two columns (legends inside or under them), the height of a row of panels
-# and of the strip under the amplitudes (residuals beside the parameter box).
+# Inches: the width of the two columns (legends inside or under them), the height of a row
+# of panels and of the strip under the amplitudes (residuals beside the parameter box).
 _WIDTH, _ROW, _STRIP = 13.0, 4.0, 1.6
 # Dots per inch of a PNG figure unless told otherwise.
 DPI = 110
