@@ -37,6 +37,8 @@ def place_legend(axes, below=True) -> bool:
         return False
     legend = axes.legend(handles, labels, loc="upper right", **LEGEND_STYLE)
     frame = axes.get_window_extent()
+    if not (frame.width > 0 and frame.height > 0):  # axes squeezed to nothing
+        return False
     box = legend.get_window_extent()
     size = ((1 + _MARGIN) * box.width / frame.width, (1 + _MARGIN) * box.height / frame.height)
     pad = LEGEND_STYLE["borderaxespad"] * LEGEND_STYLE["fontsize"] * axes.figure.dpi / 72
