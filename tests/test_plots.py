@@ -447,3 +447,18 @@ def test_the_q_band_is_listed_only_where_it_shows():
     half = noisy.fit.interval_factor * noisy.fit.q_stderr
     points = axes.get_window_extent().height * 72 / axes.figure.dpi / axes.get_ylim()[1]
     assert np.max(half) * points > 1.0 + 1.9 / 2
+
+
+def test_a_single_regime_fit_off_the_amplitude_scale_is_named():
+    """A comparison fit wholly above the amplitudes (its y0 made 100 times the record's)
+    is not listed in the legend and the panel's foot says it is off scale."""
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    fit = analysis.fit
+    candidates = tuple(replace(c, values={**c.values, "y0": 100 * c.values["y0"]})
+                       if c.model == "c" else c for c in fit.candidates)
+    view = record_view(analysis)
+    figure = report_figure(view, replace(fit, candidates=candidates), panels="amplitude")
+    axes = _panels(figure)["amplitude"]
+    assert "Coulomb only (c) off scale" in _note(axes)
+    labels = {t.get_text() for t in axes.get_legend().get_texts()}
+    assert "Coulomb only (c)" not in labels and "fluid only (a)" in labels
