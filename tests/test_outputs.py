@@ -160,3 +160,12 @@ def test_the_figure_and_the_report_name_the_same_units():
                if "reduced chi-square" in t.get_text())
     for k in ("a", "b"):
         assert f"{k} ({units[k]})" in box
+
+
+def test_the_runs_summary_gives_each_coefficients_unit():
+    text = _run(CAPSTONE, "--method", "turning-points").output
+    summary = text[text.index("runs of "):].splitlines()
+    lines = {line.split()[0]: line for line in summary[1:] if line.strip()}
+    assert " rad (sem " in lines["y0"] and " 1/s (sem " in lines["b"]
+    assert " rad/s (sem " in lines["c"]
+    assert lines["a"].endswith("0 in every run (not detected)")

@@ -434,15 +434,17 @@ def runs_summary(source: str, analyses) -> str:
     lines[0] += (f"; models {', '.join(f'{m} in {n}' for m, n in models.most_common())}; "
                  f"mean +- sd over runs (sem; median stderr of a run), {unit}:")
     columns = {k: [_law_values(a.fit) for a in fitted] for k in ("y0",) + TERMS}
+    units = _units_of(fitted[0])[1]
     for key, pairs in columns.items():
-        lines.append(_spread_line(key, [v[key] for v, _ in pairs], [e[key] for _, e in pairs]))
+        lines.append(_spread_line(key, [v[key] for v, _ in pairs], [e[key] for _, e in pairs],
+                                  units[key]))
     q = [(a.fit.q_summary or {}) for a in fitted]
     lines.append(_spread_line("Q initial", [d.get("initial") for d in q],
                               [d.get("initial_stderr") for d in q]))
     return "\n".join(lines) + "\n"
 
 
-def _spread_line(name, values, errors):
+def _spread_line(name, values, errors, unit=None):
     values = [v for v in values if v is not None and math.isfinite(v)]
     errors = [e for e in errors if e is not None and math.isfinite(e)]
     if not values:
@@ -453,5 +455,6 @@ def _spread_line(name, values, errors):
     sd = statistics.stdev(values) if len(values) > 1 else float("nan")
     sem = sd / math.sqrt(len(values))
     typical = f"{statistics.median(errors):.2g}" if errors else "-"
-    return (f"  {name:<10} {mean:.6g} +- {sd:.2g} (sem {sem:.2g}; run stderr {typical}; "
+    unit = f" {unit}" if unit else ""
+    return (f"  {name:<10} {mean:.6g} +- {sd:.2g}{unit} (sem {sem:.2g}; run stderr {typical}; "
             f"{len(values)} runs)")
