@@ -1,6 +1,7 @@
 """The Python interface: analyse, analyse_file, analyse_files and what an Analysis offers."""
 
 import doctest
+import html
 import json
 import math
 import re
@@ -201,3 +202,45 @@ def test_bad_values_are_refused_by_the_shared_checks(tmp_path):
         with pytest.raises(UsageError, match="must end in .png, .pdf or .svg"):
             check_plot_name(name)
     check_plot_name("plots/figure.PDF")
+
+
+def test_fit_results_have_a_short_repr(fig_20_19):
+    """print(analysis.fit) gives the model, the kept coefficients with their errors, Q
+    and the goodness of fit on one line, not the arrays."""
+    fit = fig_20_19.fit
+    text = repr(fit)
+    assert "\n" not in text and len(text) < 300 and "array" not in text
+    assert text.startswith("<DecayFit abc by turning points: y0 = ")
+    for k in "abc":
+        assert f"{k} = {fit.values[k]:.4g} +- {fit.stderr[k]:.2g}" in text
+    assert f"Q initial {fit.q_summary['initial']:.4g}" in text
+    assert text.endswith(f"; {fit.n_points} turning points, reduced chi-square "
+                         f"{fit.reduced_chi_square:.3g}>")
+    path = str(SAMPLES / "capstone_runs.csv")
+    waveform = mcfit.analyse_file(path, run=4, method="waveform").fit
+    assert repr(waveform).startswith("<DecayFit bc by waveform:")
+    assert f"{waveform.n_points} samples" in repr(waveform)
+    power = mcfit.analyse_file(str(SAMPLES / "fig20_19_all_three.csv"), model="power").fit
+    assert repr(power).startswith("<PowerLawFit power by turning points: y0 = ")
+    assert " n = " in repr(power) and len(repr(power)) < 300
+
+
+def test_a_pendulum_fit_has_the_short_repr_too():
+    t = np.arange(0.0, 60.0, 0.02)
+    theta = 0.6 * np.exp(-0.03 * t) * np.cos(2 * np.pi * t)
+    fit = mcfit.analyse(t, theta, pendulum=True, model="b").fit
+    assert repr(fit).startswith("<PendulumFit b by turning points: y0 = ")
+    assert len(repr(fit)) < 300
+
+
+def test_a_notebook_shows_the_report_and_the_figure_on_request(fig_20_19):
+    page = fig_20_19._repr_html_()
+    assert page.startswith("<pre>") and page.endswith("</pre>")
+    assert html.unescape(page[5:-6]) == fig_20_19.report()
+    assert fig_20_19._repr_mimebundle_() == {}  # not drawn unless asked for
+    assert fig_20_19._repr_mimebundle_(include={"text/html"}) == {}
+    png = fig_20_19._repr_mimebundle_(include={"image/png"})["image/png"]
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+    failed = mcfit.analyse(np.arange(50.0), np.ones(50))
+    assert "status: error" in failed._repr_html_()
+    assert failed._repr_mimebundle_(include={"image/png"}) == {}

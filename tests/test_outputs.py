@@ -119,3 +119,53 @@ def test_turning_points_and_results_may_not_share_stdout():
 def test_method_is_refused_with_pendulum():
     result = _run(FIG_20_19, "--pendulum", "--method", "waveform")
     assert result.exit_code == 2 and "--method is not available with --pendulum" in result.output
+
+
+CYCLES = str(SAMPLES / "fig20_20_peak_speed_cycles.csv")
+CAPSTONE = str(SAMPLES / "capstone_runs.csv")
+
+
+@pytest.mark.parametrize("path, signal_unit, units", [
+    (FIG_20_19, None, ("U", "1/(U*s)", "1/s", "U/s")),
+    (CAPSTONE, "rad", ("rad", "1/(rad*s)", "1/s", "rad/s")),
+    (CYCLES, "cm/s", ("cm/s", "1/((cm/s)*cycle)", "1/cycle", "(cm/s)/cycle")),
+])
+def test_the_units_of_y0_a_b_c_in_text_json_and_csv(path, signal_unit, units):
+    """dy/dt = -c - b*y - a*y^2 with y in U: c in U per time, b per time, a per U per
+    time; the text report, the JSON and the CSV give the same."""
+    options = ["--run", "1"] if path == CAPSTONE else []
+    data = json.loads(_run(path, *options, "--format", "json").output)
+    assert data["signal_unit"] == signal_unit
+    assert tuple(data["coefficient_units"][k] for k in ("y0", "a", "b", "c")) == units
+    text = _run(path, *options).output
+    for label, unit in zip(("y0 (amplitude", "a (fluid)", "b (hysteretic)", "c (Coulomb)"),
+                           units):
+        line = next(line for line in text.splitlines() if line.strip().startswith(label))
+        assert line.endswith(" " + unit), line
+    assert ("U: the signal's unit" in text) == (signal_unit is None)
+    row = next(csv.DictReader(io.StringIO(_run(path, *options, "--format", "csv").output)))
+    assert row["signal_unit"] == (signal_unit or "")
+    assert tuple(row[f"{k}_unit"] for k in ("y0", "a", "b", "c")) == units
+
+
+def test_the_figure_and_the_report_name_the_same_units():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from mcfit.api import analyse_file
+
+    analysis = analyse_file(CYCLES)
+    units = analysis.summary()["coefficient_units"]
+    box = next(t.get_text() for a in analysis.figure(panels="record").axes for t in a.texts
+               if "reduced chi-square" in t.get_text())
+    for k in ("a", "b"):
+        assert f"{k} ({units[k]})" in box
+
+
+def test_the_runs_summary_gives_each_coefficients_unit():
+    text = _run(CAPSTONE, "--method", "turning-points").output
+    summary = text[text.index("runs of "):].splitlines()
+    lines = {line.split()[0]: line for line in summary[1:] if line.strip()}
+    assert " rad (sem " in lines["y0"] and " 1/s (sem " in lines["b"]
+    assert " rad/s (sem " in lines["c"]
+    assert lines["a"].endswith("0 in every run (not detected)")

@@ -93,7 +93,10 @@ def test_axis_labels_and_the_parameter_box_carry_the_unit(drawn):
 
 @pytest.mark.parametrize("name", ["fig20_19_all_three.csv", "capstone_runs.csv#Run 1",
                                   "fig20_20_peak_speed_cycles.csv"])
-def test_legends_stand_outside_the_axes(name):
+def test_legends_take_no_width_and_cover_no_measured_point(name):
+    """Each legend lies within its axes' width (inside them, or under them below the axis
+    label), and no measured point (turning points, amplitudes, binned medians, measured
+    rates) is under it."""
     figure = dict(ANALYSES)[name].figure(panels=PANELS)
     figure.set_dpi(40)  # the layout is in inches and points: a coarse raster is enough
     canvas = FigureCanvasAgg(figure)
@@ -106,7 +109,22 @@ def test_legends_stand_outside_the_axes(name):
             continue
         legends += 1
         box, frame = legend.get_window_extent(renderer), axes.get_window_extent(renderer)
-        assert box.x0 >= frame.x1 - 0.5, axes.get_title()
+        assert frame.x0 - 0.5 <= box.x0 and box.x1 <= frame.x1 + 0.5, axes.get_title()
+        inside = box.y0 >= frame.y0 - 0.5 and box.y1 <= frame.y1 + 0.5
+        label = axes.xaxis.label
+        below = box.y1 <= frame.y0 and (not label.get_visible() or not label.get_text()
+                                        or box.y1 <= label.get_window_extent(renderer).y0)
+        assert inside or below, axes.get_title()
+        for line in axes.get_lines():
+            if line.get_marker() in ("None", None, ""):
+                continue
+            xy = line.get_transform().transform(line.get_xydata())
+            xy = xy[np.all(np.isfinite(xy), axis=1)]
+            covered = ((xy[:, 0] > box.x0) & (xy[:, 0] < box.x1) & (xy[:, 1] > box.y0)
+                       & (xy[:, 1] < box.y1))
+            # A faint measured point or two may sit under a framed legend, nothing more.
+            assert np.count_nonzero(covered) <= 0.02 * len(xy), (axes.get_title(),
+                                                                 line.get_label())
     assert legends >= 5
 
 
@@ -259,7 +277,17 @@ def test_unit_title_panels_and_size_from_the_command_line(tmp_path):
     assert "a (1/(mm*s))" in box and "c (mm/s)" in box
 
 
+def test_dpi_sets_the_pngs_pixels(tmp_path):
+    path = tmp_path / "fig.png"
+    result = CliRunner().invoke(cli, [str(ROOT / "sample_data" / "fig20_19_all_three.csv"),
+                                      "--plot", str(path), "--figsize", "8,5", "--dpi", "50",
+                                      "--panels", "amplitude,qamp"])
+    assert result.exit_code == 0, result.output
+    assert struct.unpack(">II", path.read_bytes()[16:24]) == (400, 250)
+
+
 @pytest.mark.parametrize("arguments, message", [
+    (["--dpi", "0"], "--dpi"),
     (["--panels", "amplitude,bogus"], "--panels"),
     (["--panels", "q,q"], "--panels"),
     (["--figsize", "8"], "--figsize"),
@@ -335,3 +363,102 @@ def test_curves_differ_in_dash_pattern_not_colour_alone():
                  if not line.get_label().startswith("_") and line.get_linestyle() != "None"]
         dashes = [(line.get_linestyle(), str(line._unscaled_dash_pattern)) for line in lines]
         assert len(lines) >= 4 and len(set(dashes)) == len(lines), name
+
+
+def _box_text(figure):
+    return next(t.get_text() for a in figure.axes for t in a.texts
+                if "reduced chi-square" in t.get_text())
+
+
+def test_the_box_counts_samples_for_a_waveform_fit_and_turning_points_otherwise():
+    path = str(ROOT / "sample_data" / "capstone_runs.csv")
+    waveform = mcfit.analyse_file(path, run=4, method="waveform")
+    assert waveform.fit.method == "waveform" and waveform.fit.n_points > waveform.turning.count
+    box = _box_text(waveform.figure(panels="record"))
+    assert f"{waveform.fit.n_points} samples, reduced chi-square" in box
+    assert "turning points" not in box
+    crests = mcfit.analyse_file(path, run=4, method="turning-points")
+    box = _box_text(crests.figure(panels="record"))
+    assert f"{crests.turning.count} turning points, reduced chi-square" in box
+
+
+def test_a_crest_left_out_before_the_release_is_drawn_on_the_record():
+    """A pendulum held aside at 20 (plus an offset) for 3 s, then let go: the crest left out
+    before the release is drawn where the record is at its time, within the signal's range,
+    not at its half-cycle fit's magnitude above it; the used ones at their amplitudes."""
+    t = np.arange(0.0, 30.0, 0.02)
+    s = np.clip(t - 3.0, 0.0, None)
+    x = decay.amplitude(s, 20.0, 0.002, 0.03, 0.04) * np.cos(2 * np.pi * s)
+    x[t < 3.0] = 20.0
+    x += 0.3 + np.random.default_rng(1).normal(0.0, 0.05, t.size)
+    analysis = mcfit.analyse(t, x, model="abc", method="turning-points")
+    turning = analysis.turning
+    left_out = ~turning.used
+    assert "before release" in turning.excluded_reason
+    view = record_view(analysis)
+    assert np.all(view.turning_x[left_out] <= x.max())
+    np.testing.assert_allclose(view.turning_x[left_out], np.interp(turning.t[left_out], t, x))
+    used = turning.used
+    np.testing.assert_allclose(view.turning_x[used], turning.equilibrium_at(turning.t[used])
+                               + turning.sign[used] * turning.y[used])
+
+
+def _note(axes):
+    return "\n".join(t.get_text() for t in axes.texts if "off scale" in t.get_text())
+
+
+def test_a_part_of_q_off_scale_is_named_with_its_values():
+    """fig20_19: Q hysteretic = omega/(2 b) = 62.6 lies above the Q-against-amplitude
+    range (15 to 45); the panel says so with its value, and draws no such curve."""
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    fit = analysis.fit
+    axes = _panels(analysis.figure(panels="qamp"))["qamp"]
+    q_hysteretic = 2 * np.pi / analysis.turning.period / (2 * fit.values["b"])
+    assert axes.get_ylim()[1] < q_hysteretic
+    assert f"Q hysteretic off scale ({q_hysteretic:.3g})" in _note(axes)
+    assert "Q hysteretic" not in {line.get_label() for line in axes.get_lines()}
+
+
+@pytest.mark.skipif(not (REALDATA / "pendulum_cup").is_dir(), reason="no real records")
+def test_the_pendulums_q_coulomb_off_scale_is_named():
+    analysis = mcfit.analyse_file(str(REALDATA / "pendulum_cup" / "lab1_data.txt"),
+                                  signal_col=2, pendulum=True)
+    axes = _panels(analysis.figure(panels="q"))["q"]
+    coulomb = analysis.fit.q_parts["coulomb"]
+    assert np.nanmin(coulomb) > axes.get_ylim()[1]
+    assert "Q Coulomb off scale" in _note(axes)
+
+
+def test_the_q_band_is_listed_only_where_it_shows():
+    """fig20_19: Q 14 to 38 known to +-0.1 on axes to 120 (the band is a tenth of the
+    line's width): no band, and the total says so. A short noisy record: Q known to a
+    few percent, the band is drawn and listed."""
+    axes = _panels(dict(ANALYSES)["fig20_19_all_three.csv"].figure(panels="q"))["q"]
+    labels = {t.get_text() for t in axes.get_legend().get_texts()}
+    assert "95 % band" not in labels and not axes.collections
+    assert "Q total (95 % band narrower than the line)" in labels
+    t = np.arange(0.0, 12.0, 0.02)
+    x = decay.amplitude(t, 1.0, 0.0, 0.1, 0.0) * np.cos(2 * np.pi * t)
+    x += np.random.default_rng(3).normal(0.0, 0.03, t.size)
+    noisy = mcfit.analyse(t, x, model="b", method="turning-points")
+    axes = _panels(noisy.figure(panels="q"))["q"]
+    labels = {t.get_text() for t in axes.get_legend().get_texts()}
+    assert {"95 % band", "Q total"} <= labels and len(axes.collections) == 1
+    half = noisy.fit.interval_factor * noisy.fit.q_stderr
+    points = axes.get_window_extent().height * 72 / axes.figure.dpi / axes.get_ylim()[1]
+    assert np.max(half) * points > 1.0 + 1.9 / 2
+
+
+def test_a_single_regime_fit_off_the_amplitude_scale_is_named():
+    """A comparison fit wholly above the amplitudes (its y0 made 100 times the record's)
+    is not listed in the legend and the panel's foot says it is off scale."""
+    analysis = dict(ANALYSES)["fig20_19_all_three.csv"]
+    fit = analysis.fit
+    candidates = tuple(replace(c, values={**c.values, "y0": 100 * c.values["y0"]})
+                       if c.model == "c" else c for c in fit.candidates)
+    view = record_view(analysis)
+    figure = report_figure(view, replace(fit, candidates=candidates), panels="amplitude")
+    axes = _panels(figure)["amplitude"]
+    assert "Coulomb only (c) off scale" in _note(axes)
+    labels = {t.get_text() for t in axes.get_legend().get_texts()}
+    assert "Coulomb only (c)" not in labels and "fluid only (a)" in labels

@@ -98,6 +98,26 @@ class Analysis:
         return (f"Analysis(source={self.source!r}, model={self.fit.model!r}, {terms}"
                 f"{q_text})")
 
+    def _repr_html_(self):
+        """The text report, for a notebook (Jupyter shows it as an Analysis's output)."""
+        import html
+
+        return f"<pre>{html.escape(self.report())}</pre>"
+
+    def _repr_mimebundle_(self, include=None, exclude=None):
+        """The report figure as PNG only when asked for by name, since drawing it takes
+        seconds: ``IPython.display.display(analysis, include=["image/png"])``."""
+        if (not include or "image/png" not in include or "image/png" in (exclude or ())
+                or self.status != "ok" or self.fit is None):
+            return {}
+        import io
+
+        from mcfit.plots import DPI
+
+        buffer = io.BytesIO()
+        self.figure().savefig(buffer, format="png", dpi=DPI)
+        return {"image/png": buffer.getvalue()}
+
 
 def failed_analysis(source: str, message: str, record=None, turning=None) -> Analysis:
     """An analysis that ended in an expected failure, carrying the one-line message."""

@@ -59,6 +59,7 @@ class FitOptions:
     title: str | None = None  # the figure's title (default: the file name)
     panels: tuple | None = None  # the figure's panels (default: mcfit.options.DEFAULT_PANELS)
     figsize: tuple | None = None  # the figure's (width, height) in inches
+    dpi: int | None = None  # a PNG figure's dots per inch (default: mcfit.plots.DPI)
 
 
 @dataclass(frozen=True)
@@ -236,7 +237,7 @@ def _plot(analysis, path, options):
         title = f"{title}, {run}"
     figure = analysis.figure(title, panels=options.panels, figsize=options.figsize,
                              unit=options.unit)
-    save_figure(figure, path)
+    save_figure(figure, path, dpi=options.dpi)
 
 
 def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):

@@ -357,10 +357,12 @@ def _column(value):
                    + " (qamp: Q against amplitude; backbone: period against amplitude) "
                    "[default: record,amplitude,q,rate].")
 @click.option("--figsize", metavar="W,H", help="The figure's size in inches, e.g. 12,9.")
+@click.option("--dpi", type=click.IntRange(min=20, max=2400), metavar="N",
+              help="Resolution of a PNG figure in dots per inch [default: 110].")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
         bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs, dask,
         turning_points_out, start, end, run, angle_from, pendulum, degrees, unit, title,
-        panels, figsize):
+        panels, figsize, dpi):
     if dask is not None and jobs > 1:
         raise UsageError("give --dask ADDRESS or --jobs N, not both: with --dask the "
                          "cluster's workers fit the records.")
@@ -382,7 +384,7 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
     if plot_file is not None:
         check_plot_name(plot_file)
     figure_options = _figure_options(plot_file or plot_dir, unit=unit, title=title,
-                                     panels=panels, figsize=figsize)
+                                     panels=panels, figsize=figsize, dpi=dpi)
     options = dict(time_col=_column(time_col), signal_col=_column(signal_col),
                    sheet=_column(sheet), rate=rate, kind=input_kind, domain=domain,
                    criterion=criterion, model=model,
@@ -624,9 +626,11 @@ Sections:
                (--method auto and turning-points), start-up, and with --full
                a CSV of 10^7 samples (time and peak memory)
 
-The default quick grid runs in a few minutes; --full runs the whole grid
-(about an hour, most of it the methods section). Times are measured on this
-machine; nothing is asserted.
+The default quick grid runs in about two minutes on two cores; --full runs the
+whole grid (more steps, tolerances, SNRs and samples per cycle, 100 records a
+fitting cell, 400 a verdicts scene, 40 a methods Q, a CSV of 10^7 samples):
+about an hour, most of it the methods section. --output-dir writes the plots
+with either grid. Times are measured on this machine; nothing is asserted.
 
 \b
 Examples:
@@ -637,7 +641,9 @@ Examples:
 
 
 @cli.command("bench", help=_BENCH_HELP, short_help="Benchmark integrators, fits and throughput.")
-@click.option("--full", is_flag=True, help="Run the full grid (minutes) instead of the quick one.")
+@click.option("--full", is_flag=True,
+              help="Run the whole grid (about an hour) instead of the quick one (about two "
+                   "minutes).")
 @click.option("--section", "sections", multiple=True,
               type=click.Choice(BENCH_SECTIONS),
               help="Run only this section (repeatable) [default: all].")

@@ -44,6 +44,7 @@ FLAGS = {
     "bootstrap": "--bootstrap", "seed": "--seed", "method": "--method",
     "pendulum": "--pendulum", "degrees": "--degrees", "start": "--start", "end": "--end",
     "unit": "--unit", "title": "--title", "panels": "--panels", "figsize": "--figsize",
+    "dpi": "--dpi",
 }
 _MARKED = re.compile(r"`([a-z_]+)(?:=([^`\s]*))?`")
 

@@ -14,13 +14,15 @@ from mcfit.analysis import Analysis
 from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS
 
 __all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS", "csv_columns",
+           "coefficient_units",
            "turning_points_header", "turning_points_rows", "turning_points_table",
            "to_json_dict", "to_json", "csv_header", "to_csv_row", "to_text", "runs_summary"]
 
 CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", "b", "b_stderr",
                "c", "c_stderr", "period", "q_initial", "q_final", "turning_points", "error",
                "q_initial_stderr", "q_final_stderr", "domain", "units", "method", "resolved",
-               "reduced_chi_square", "warnings", "run")
+               "reduced_chi_square", "warnings", "run", "signal_unit", "y0_unit", "a_unit",
+               "b_unit", "c_unit")
 # Appended with bootstrap intervals: the 95 % interval of each parameter and of Q.
 BOOTSTRAP_CSV_COLUMNS = tuple(f"{k}_boot_{end}" for k in ("y0", "a", "b", "c", "q_initial")
                               for end in ("low", "high"))
@@ -33,6 +35,28 @@ def _number(value):
         return None
     value = float(value)
     return value if math.isfinite(value) else None
+
+
+def coefficient_units(signal_unit, per) -> dict:
+    """The units of y0, a, b and c for a signal in ``signal_unit`` (``"U"`` when None) and
+    time in ``per`` ("s", "cycle"): ``{"y0": "mm", "a": "1/(mm*s)", "b": "1/s",
+    "c": "mm/s"}`` (dy/dt = -c - b*y - a*y**2)."""
+    unit = signal_unit or "U"
+    factor = f"({unit})" if any(mark in unit for mark in "/* ") else unit
+    return {"y0": unit, "a": f"1/({factor}*{per})", "b": f"1/{per}", "c": f"{factor}/{per}"}
+
+
+def _units_of(analysis: Analysis):
+    """(signal unit or None, coefficient units) of a fitted analysis: the signal's unit
+    from the header (or `unit`), else a pendulum fit's angle unit; time per second, per
+    the header's time unit, or per cycle."""
+    record, fit = analysis.record, analysis.fit
+    signal_unit = getattr(record, "signal_unit", None) or getattr(fit, "angle_unit", None)
+    if fit.domain == "cycle":
+        per = "cycle"
+    else:
+        per = getattr(record, "time_unit", None) or "s"
+    return signal_unit or None, coefficient_units(signal_unit, per)
 
 
 def _params_in_time_units(analysis: Analysis):
@@ -94,6 +118,7 @@ def to_json_dict(analysis: Analysis) -> dict:
         out["params"] = {k: {"value": _number(values[k]), "stderr": _number(stderr[k])}
                          for k in ("y0", "a", "b", "c")}
         out["params_units"] = units
+        out["signal_unit"], out["coefficient_units"] = _units_of(analysis)
         out["params_per_cycle"] = _params_per_cycle(analysis)
         out["t0"] = _number(fit.t0)  # time (or cycle) of the first turning point used, where y = y0
         q = fit.q_summary or {}
@@ -187,7 +212,10 @@ def to_csv_row(analysis: Analysis, bootstrap=False) -> str:
            "domain": data.get("domain"), "units": data.get("params_units"),
            "method": data.get("method"), "resolved": data.get("resolved"),
            "reduced_chi_square": (data.get("fit") or {}).get("reduced_chi_square"),
-           "warnings": "; ".join(data.get("warnings") or ()) or None, "run": data.get("run")}
+           "warnings": "; ".join(data.get("warnings") or ()) or None, "run": data.get("run"),
+           "signal_unit": data.get("signal_unit")}
+    for k, unit in (data.get("coefficient_units") or dict.fromkeys(TERMS + ("y0",))).items():
+        row[f"{k}_unit"] = unit
     for k in ("y0", "a", "b", "c"):
         row[k] = (params.get(k) or {}).get("value")
         row[f"{k}_stderr"] = (params.get(k) or {}).get("stderr")
@@ -286,9 +314,11 @@ def _damping_form_lines(data) -> list[str]:
     if form is None:
         return []
     lines = [f"  damping form:    {form} ({data['damping_form_reason']})"]
+    signal_unit = data.get("signal_unit") or "U"
     for name, entry in data["physical"].items():
         lines.append(f"    {entry['force']:24s} {name} = "
-                     f"{_format(entry['value'], entry['stderr'])} {entry['unit']}")
+                     f"{_format(entry['value'], entry['stderr'])} "
+                     f"{entry['unit'].replace('U', signal_unit)}")
     return lines
 
 
@@ -396,8 +426,12 @@ def to_text(analysis: Analysis) -> str:
     at = f"{fit.t0:.4g} s" if fit.domain == "time" else f"n = {fit.t0:.4g}"
     labels = {"y0": f"y0 (amplitude at {at})",
               "a": "a (fluid)", "b": f"b ({_b_name(data)})", "c": "c (Coulomb)"}
+    units = data["coefficient_units"]
     for k in ("y0",) if fit.model == POWER else ("y0", "a", "b", "c"):
-        lines.append(f"    {labels[k]:28s} {_format(params[k]['value'], params[k]['stderr'])}")
+        value = _format(params[k]["value"], params[k]["stderr"])
+        lines.append(f"    {labels[k]:28s} {value:24s} {units[k]}")
+    if data["signal_unit"] is None:
+        lines.append("    (U: the signal's unit, not named in the record)")
     per_cycle = data.get("params_per_cycle")
     if per_cycle is not None and unit == "per second" and fit.model not in (POWER, NONE):
         lines.append("  per cycle:       " + ", ".join(
@@ -432,15 +466,17 @@ def runs_summary(source: str, analyses) -> str:
     lines[0] += (f"; models {', '.join(f'{m} in {n}' for m, n in models.most_common())}; "
                  f"mean +- sd over runs (sem; median stderr of a run), {unit}:")
     columns = {k: [_law_values(a.fit) for a in fitted] for k in ("y0",) + TERMS}
+    units = _units_of(fitted[0])[1]
     for key, pairs in columns.items():
-        lines.append(_spread_line(key, [v[key] for v, _ in pairs], [e[key] for _, e in pairs]))
+        lines.append(_spread_line(key, [v[key] for v, _ in pairs], [e[key] for _, e in pairs],
+                                  units[key]))
     q = [(a.fit.q_summary or {}) for a in fitted]
     lines.append(_spread_line("Q initial", [d.get("initial") for d in q],
                               [d.get("initial_stderr") for d in q]))
     return "\n".join(lines) + "\n"
 
 
-def _spread_line(name, values, errors):
+def _spread_line(name, values, errors, unit=None):
     values = [v for v in values if v is not None and math.isfinite(v)]
     errors = [e for e in errors if e is not None and math.isfinite(e)]
     if not values:
@@ -451,5 +487,6 @@ def _spread_line(name, values, errors):
     sd = statistics.stdev(values) if len(values) > 1 else float("nan")
     sem = sd / math.sqrt(len(values))
     typical = f"{statistics.median(errors):.2g}" if errors else "-"
-    return (f"  {name:<10} {mean:.6g} +- {sd:.2g} (sem {sem:.2g}; run stderr {typical}; "
+    unit = f" {unit}" if unit else ""
+    return (f"  {name:<10} {mean:.6g} +- {sd:.2g}{unit} (sem {sem:.2g}; run stderr {typical}; "
             f"{len(values)} runs)")

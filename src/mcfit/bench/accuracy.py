@@ -266,17 +266,17 @@ def format_fitting(cells, config: BenchConfig) -> str:
         letters = scene.model
         lines += ["", f"{scene.name}: {scene.describe()}"]
         head = f"  {'SNR':>6}{'spc':>7}  {'method':<20}"
-        head += "".join(f"{'CRLB ' + k:>10}" for k in letters)
-        head += "".join(f"{'RMSE/CRLB ' + k:>13}" for k in letters)
-        head += "".join(f"{'bias ' + k:>8}" for k in letters)
-        head += "".join(f"{'se/RMSE ' + k:>10}" for k in letters)
+        head += "".join(_cell("CRLB " + k, 10) for k in letters)
+        head += "".join(_cell("RMSE/CRLB " + k, 13) for k in letters)
+        head += "".join(_cell("bias " + k, 10) for k in letters)
+        head += "".join(_cell("se/RMSE " + k, 10) for k in letters)
         head += f"{'ms':>7}{'failed':>8}{'model ok':>10}"
         lines.append(head)
         for c in rows:
             row = f"  {c.snr:>6.0e}{c.samples_per_cycle:>7.4g}  {c.method:<20}"
-            row += "".join(f"{c.crlb[k]:>10.2e}" for k in letters)
+            row += "".join(_number(c.crlb[k], 10, ".2e") for k in letters)
             row += "".join(_number(c.rmse_ratio.get(k), 13, ".3g") for k in letters)
-            row += "".join(_number(c.bias_ratio.get(k), 8, "+.2g") for k in letters)
+            row += "".join(_number(c.bias_ratio.get(k), 10, "+.2g") for k in letters)
             row += "".join(_number(c.stderr_ratio.get(k), 10, ".2f") for k in letters)
             row += f"{c.milliseconds:>7.3g}{c.failed:>8d}"
             row += f"{c.model_right:>6d}/{c.records:<3d}" if c.model_right is not None else ""
@@ -285,4 +285,10 @@ def format_fitting(cells, config: BenchConfig) -> str:
 
 
 def _number(value, width, spec):
-    return ("-" if value is None else format(value, spec)).rjust(width)
+    return _cell("-" if value is None else format(value, spec), width)
+
+
+def _cell(text, width):
+    """``text`` right-aligned in ``width`` characters, always after a space: a long value
+    (a negative bias, -0.00052) never runs into the column before it."""
+    return " " + text.rjust(width - 1)

@@ -15,6 +15,7 @@ from mcfit.fit.models import CRITERIA, MODELS, NONE, POWER, REGIME_NAMES, TERMS,
     parse_model, regime_list, terms_of
 from mcfit.fit.power import PowerLawFit, fit_power_law
 from mcfit.fit.problem import PARAMETERS, ScaledRecord
+from mcfit.fit.reprs import fit_repr
 from mcfit.fit.selection import LRT_ALPHA, Selection, select_model
 
 __all__ = ["DecayFit", "fit_decay", "MIN_POINTS", "tie_warning", "diagnose", "misfit_warning",
@@ -94,6 +95,9 @@ class DecayFit:
         """The fitted amplitude at times ``t`` (same units as the input)."""
         t = np.maximum(np.asarray(t, dtype=float) - self.t0, 0)
         return decay.amplitude(t, *(self.values[k] for k in PARAMETERS))
+
+    def __repr__(self):
+        return fit_repr(self, ("y0",) + tuple(self.selection.terms))
 
 
 def fit_decay(t, y, sigma=None, *, period=None, period_sigma=None, domain="time",

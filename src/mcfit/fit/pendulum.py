@@ -227,7 +227,7 @@ class _Problem:
         return np.linalg.pinv(jacobian.T @ jacobian)
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)  # DecayFit's short repr
 class PendulumFit(DecayFit):
     """A :class:`DecayFit` of the pendulum's amplitude law. Coefficients keep their
     small-angle meaning and the units of the signal (radians, or degrees when the record is

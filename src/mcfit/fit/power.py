@@ -11,6 +11,7 @@ import numpy as np
 from mcfit import decay
 from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
 from mcfit.fit.models import POWER
+from mcfit.fit.reprs import fit_repr
 
 __all__ = ["PowerLawFit", "fit_power_law"]
 
@@ -47,6 +48,9 @@ class PowerLawFit:
         v = self.values
         t = np.maximum(np.asarray(t, dtype=float) - self.t0, 0)
         return decay.power_law_amplitude(t, v["y0"], v["k"], v["n"])
+
+    def __repr__(self):
+        return fit_repr(self, ("y0", "k", "n"))
 
 
 def fit_power_law(scaled, t, y, sigma, omega, domain, criterion, noise_from_residuals):

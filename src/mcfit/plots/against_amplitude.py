@@ -11,9 +11,10 @@ from mcfit import decay
 from mcfit.fit import NONE, POWER
 from mcfit.plots.binning import Binned, binned_medians, binned_rates, full_periods, \
     pair_rates
+from mcfit.plots.legends import place_legend
 from mcfit.plots.style import (BINNED, RAW, REGIME_OF_PART, REGIME_STYLE, SELECTED,
-                               clipped, legend_outside, off_scale_note, padded,
-                               readable_log_axis, span_of, visible)
+                               clipped, off_scale_note, padded, readable_log_axis, span_of,
+                               visible)
 
 __all__ = ["draw_rate", "draw_q_amplitude", "draw_backbone"]
 
@@ -41,7 +42,7 @@ def draw_rate(axes, view, fit):
     axes.set_xlabel(view.amplitude_label)
     axes.set_ylabel(f"damping rate -(dy/dt)/y (1/{unit})")
     axes.set_title("damping rate against amplitude")
-    legend_outside(axes)
+    place_legend(axes)
 
 
 def draw_q_amplitude(axes, view, fit):
@@ -71,15 +72,20 @@ def draw_q_amplitude(axes, view, fit):
     low, high = _measured(axes, amplitude, q, bins, model, "omega/(2 rate)")
     if model is not None:
         axes.plot(y_fine, model, label="model Q", **SELECTED)
+    hidden = []
     for key, part in parts.items():
         color, dashes = REGIME_STYLE[REGIME_OF_PART[key]]
+        label = f"Q {key}".replace("coulomb", "Coulomb")
         if visible(part, low, high):
             axes.plot(y_fine, clipped(part, low, high), color=color, ls=dashes, lw=1.3,
-                      label=f"Q {key}".replace("coulomb", "Coulomb"))
+                      label=label)
+        else:
+            hidden.append((label, part))
+    off_scale_note(axes, curves=hidden)
     if log_x:
         axes.set_xscale("log")
         readable_log_axis(axes.xaxis, y_fine[0], y_fine[-1])
-    legend_outside(axes)
+    place_legend(axes)
 
 
 def draw_backbone(axes, view, fit):
@@ -110,7 +116,7 @@ def draw_backbone(axes, view, fit):
         axes.set_xscale("log")
         readable_log_axis(axes.xaxis, y_fine[0], y_fine[-1])
     axes.ticklabel_format(axis="y", useOffset=False, style="plain")
-    legend_outside(axes)
+    place_legend(axes)
 
 
 def _measured(axes, x, y, bins, model, what, log_y=None):

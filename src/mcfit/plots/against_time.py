@@ -9,8 +9,9 @@ from matplotlib import ticker
 
 from mcfit import decay
 from mcfit.fit import POWER
+from mcfit.plots.legends import place_legend
 from mcfit.plots.style import (DATA, LEFT_OUT, REGIME_OF_PART, REGIME_STYLE, SELECTED,
-                               TOTAL, clipped, legend_outside, padded, readable_log_axis,
+                               TOTAL, clipped, off_scale_note, padded, readable_log_axis,
                                span_of, visible)
 
 __all__ = ["draw_record", "draw_amplitudes", "draw_q"]
@@ -19,6 +20,8 @@ _SINGLE_NAME = {"a": "fluid only (a)", "b": "hysteretic only (b)", "c": "Coulomb
 # Parts of Q are drawn up to this many times the largest total Q; above, they say nothing
 # the total does not.
 _PART_REACH = 3.0
+# A band is seen where it reaches this many points beyond each edge of the line it is about.
+_BAND_SHOWS = 1.0
 
 
 def draw_record(axes, view, fit):
@@ -44,7 +47,7 @@ def draw_record(axes, view, fit):
     axes.set_xlabel(view.time_label)
     axes.set_ylabel(view.signal_label)
     axes.set_title("record and turning points")
-    legend_outside(axes)
+    place_legend(axes)
 
 
 def draw_amplitudes(axes, axes_residual, view, fit):
@@ -68,14 +71,17 @@ def draw_amplitudes(axes, axes_residual, view, fit):
             floor = float(positive.min()) if positive.size else 1.0
         # A whole power of ten, so that the tick labels at 0 and +-floor stand apart.
         axes.set_yscale("symlog", linthresh=10.0 ** math.ceil(math.log10(floor)))
+    hidden = []
     for candidate in fit.candidates:
         if candidate.model in _SINGLE_NAME and candidate.model != fit.model:
             v = candidate.values
             curve = decay.amplitude(t_fine - fit.t0, v["y0"], v["a"], v["b"], v["c"])
             color, dashes = REGIME_STYLE[candidate.model]
-            shown = visible(curve, low, high)
-            axes.plot(t_fine, clipped(curve, low, high), color=color, ls=dashes, lw=1.3,
-                      label=_SINGLE_NAME[candidate.model] if shown else None)
+            if visible(curve, low, high):
+                axes.plot(t_fine, clipped(curve, low, high), color=color, ls=dashes, lw=1.3,
+                          label=_SINGLE_NAME[candidate.model])
+            else:
+                hidden.append((_SINGLE_NAME[candidate.model], curve))
     axes.set_ylim(low, high)
     if log:
         readable_log_axis(axes.yaxis, low, high)
@@ -83,8 +89,9 @@ def draw_amplitudes(axes, axes_residual, view, fit):
         axes.yaxis.set_major_formatter(ticker.FuncFormatter(lambda value, _: f"{value:g}"))
     axes.set_ylabel(view.amplitude_label)
     axes.set_title("amplitudes: selected fit against single-regime fits")
-    legend_outside(axes)
+    off_scale_note(axes, curves=hidden)
     axes.tick_params(labelbottom=False)
+    place_legend(axes)
     residuals = (fit.y - fit.y_fit) / fit.sigma
     axes_residual.axhline(0.0, color="k", lw=0.6)
     axes_residual.plot(fit.t, residuals, ls="none", marker="o", ms=2.5, color=DATA["color"])
@@ -102,25 +109,40 @@ def draw_q(axes, view, fit):
         axes.text(0.5, 0.5, _no_q_text(fit), ha="center", va="center",
                   transform=axes.transAxes)
         return
-    axes.plot(fit.t, fit.q, label="Q total", **TOTAL)
-    upper = fit.q
+    half = None
     if getattr(fit, "q_stderr", None) is not None:
-        half = fit.interval_factor * fit.q_stderr
-        upper = fit.q + np.nan_to_num(half)
-        axes.fill_between(fit.t, fit.q - half, fit.q + half, color="0.6", alpha=0.4,
-                          hatch="///", edgecolor="0.45", lw=0, label="95 % band")
-    top = span_of(upper)[1]
+        half = np.nan_to_num(fit.interval_factor * fit.q_stderr)
+    top = span_of(fit.q + (0.0 if half is None else half))[1]
     parts = _q_parts_shown(fit)
     reach = [part[part <= _PART_REACH * top] for part in parts.values()]
     top = max([top] + [float(r.max()) for r in reach if r.size])
     high = 1.08 * top
+    axes.set_ylim(0.0, high)
+    band_seen = half is not None and _band_seen(axes, half, high)
+    label = "Q total"
+    if half is not None and not band_seen:
+        label += " (95 % band narrower than the line)"
+    axes.plot(fit.t, fit.q, label=label, **TOTAL)
+    if band_seen:
+        axes.fill_between(fit.t, fit.q - half, fit.q + half, color="0.6", alpha=0.4,
+                          hatch="///", edgecolor="0.45", lw=0, label="95 % band")
+    hidden = []
     for key, part in parts.items():
         color, dashes = REGIME_STYLE[REGIME_OF_PART[key]]
+        label = f"Q {key}".replace("coulomb", "Coulomb")
         if visible(part, 0.0, high):
-            axes.plot(fit.t, part, color=color, ls=dashes, lw=1.3,
-                      label=f"Q {key}".replace("coulomb", "Coulomb"))
-    axes.set_ylim(0.0, high)
-    legend_outside(axes)
+            axes.plot(fit.t, part, color=color, ls=dashes, lw=1.3, label=label)
+        else:
+            hidden.append((label, part))
+    off_scale_note(axes, curves=hidden)
+    place_legend(axes)
+
+
+def _band_seen(axes, half, high) -> bool:
+    """Whether a band of half-width ``half`` (Q units) about the total, on axes from 0 to
+    ``high``, shows beyond the total's line somewhere (by a point each side)."""
+    points_per_q = axes.get_window_extent().height * 72 / axes.figure.dpi / high
+    return bool(np.max(half) * points_per_q > TOTAL["lw"] / 2 + _BAND_SHOWS)
 
 
 def _q_parts_shown(fit) -> dict:

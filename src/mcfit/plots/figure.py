@@ -7,19 +7,23 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from mcfit.files import replace_atomically, temporary_beside
-from mcfit.fit import NONE, POWER, REGIME_NAMES, DecayFit, PowerLawFit
+from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS, DecayFit, PowerLawFit
 from mcfit.options import DEFAULT_PANELS, check_plot_name, parse_figsize, parse_panels
 from mcfit.plots.against_amplitude import draw_backbone, draw_q_amplitude, draw_rate
 from mcfit.plots.against_time import draw_amplitudes, draw_q, draw_record
+from mcfit.plots.legends import place_legends
 from mcfit.plots.view import record_view
+from mcfit.report import coefficient_units
 
-__all__ = ["report_figure", "plot_record", "save_figure", "figure_size", "summary_text"]
+__all__ = ["DPI", "report_figure", "plot_record", "save_figure", "figure_size", "summary_text"]
 
 _DRAW = {"record": draw_record, "q": draw_q, "rate": draw_rate, "qamp": draw_q_amplitude,
          "backbone": draw_backbone}
-# Inches: the width of the two columns with their legends, the height of a row of panels
-# and of the strip under the amplitudes (residuals beside the parameter box).
+# Inches: the width of the two columns (legends inside or under them), the height of a row
+# of panels and of the strip under the amplitudes (residuals beside the parameter box).
 _WIDTH, _ROW, _STRIP = 13.0, 4.0, 1.6
+# Dots per inch of a PNG figure unless told otherwise.
+DPI = 110
 
 
 def figure_size(panels) -> tuple[float, float]:
@@ -77,6 +81,7 @@ def report_figure(view, fit: DecayFit | PowerLawFit, panels=DEFAULT_PANELS,
     summary.text(0.0, 1.0, summary_text(fit, view), va="top", ha="left", family="monospace",
                  fontsize=9, transform=summary.transAxes)
     figure.suptitle(view.title, fontsize=13)
+    place_legends(figure)
     return figure
 
 
@@ -92,7 +97,6 @@ def _verdict(fit) -> str:
 def summary_text(fit: DecayFit | PowerLawFit, view) -> str:
     """The parameter box: the verdict, the coefficients in the record's units, Q."""
     per = "s" if fit.domain == "time" else "cycle"
-    u = view.unit_symbol
     lines = [_verdict(fit) + (" (pendulum law)" if hasattr(fit, "small_angle_period")
                               else "")]
     if fit.model == POWER:
@@ -100,8 +104,9 @@ def summary_text(fit: DecayFit | PowerLawFit, view) -> str:
         lines.append(f"dy/d{per} = -k*y^n: n = {v['n']:.3f} +- {e['n']:.2g}, "
                      f"k = {v['k']:.4g}")
     else:
-        for key, label in (("a", f"a (1/({u}*{per}))"), ("b", f"b (1/{per})"),
-                           ("c", f"c ({u}/{per})")):
+        units = coefficient_units(view.unit, view.time_unit)
+        for key in TERMS:
+            label = f"{key} ({units[key]})"
             value, error = fit.values[key], fit.stderr[key]
             if key in fit.selection.terms:
                 lines.append(f"{label:18s} {value:.4g} +- {error:.2g}" if error else
@@ -115,8 +120,9 @@ def summary_text(fit: DecayFit | PowerLawFit, view) -> str:
                      f"min {q['min']:.4g}, max {q['max']:.4g}")
     elif getattr(fit, "q_lower_bound", None) is not None:
         lines.append(f"Q > {fit.q_lower_bound:.2g} (95 %)")
-    lines.append(f"{fit.n_points} turning points, reduced chi-square "
-                 f"{fit.reduced_chi_square:.3g}")
+    # A waveform fit's points are the record's samples, not its turning points.
+    points = "samples" if getattr(fit, "method", None) == "waveform" else "turning points"
+    lines.append(f"{fit.n_points} {points}, reduced chi-square {fit.reduced_chi_square:.3g}")
     if view.unit is None and fit.model not in (POWER, NONE):
         lines.append("U: the signal's unit (not named in the record)")
     return "\n".join(lines)
@@ -130,14 +136,15 @@ def plot_record(analysis, ax=None, unit=None):
     return ax
 
 
-def save_figure(figure: Figure, path) -> None:
-    """Write the figure whole or not at all (temporary file, then rename); format from suffix."""
+def save_figure(figure: Figure, path, dpi=None) -> None:
+    """Write the figure whole or not at all (temporary file, then rename); format from
+    suffix. ``dpi`` is a PNG's dots per inch [default: :data:`DPI`]."""
     check_plot_name(path)
     path = Path(path)
     suffix = path.suffix.lower()
     temporary = temporary_beside(path)
     try:
-        figure.savefig(temporary, format=suffix.lstrip("."), dpi=110)
+        figure.savefig(temporary, format=suffix.lstrip("."), dpi=dpi or DPI)
         replace_atomically(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

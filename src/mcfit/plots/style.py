@@ -1,5 +1,5 @@
-"""The figure's look: line styles that stay apart in black and white, legends outside the
-data, axis ranges from the data and the selected fit, readable logarithmic ticks."""
+"""The figure's look: line styles that stay apart in black and white, axis ranges from the
+data and the selected fit, readable logarithmic ticks, notes of what is off scale."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 from matplotlib import ticker
 
 __all__ = ["DATA", "LEFT_OUT", "RAW", "BINNED", "SELECTED", "TOTAL", "REGIME_STYLE",
-           "legend_outside", "span_of", "padded", "readable_log_axis", "off_scale_note",
+           "span_of", "padded", "readable_log_axis", "off_scale_note",
            "clipped"]
 
 # Okabe-Ito colours (safe for colour-blind readers), each line with its own dash pattern
@@ -25,16 +25,8 @@ TOTAL = dict(color="k", lw=1.9, ls="-", zorder=3)
 REGIME_STYLE = {"a": ("#E69F00", (0, (6, 2))), "b": ("#009E73", (0, (6, 2, 1.5, 2))),
                 "c": ("#CC79A7", (0, (1.5, 1.5)))}
 REGIME_OF_PART = {"fluid": "a", "hysteretic": "b", "coulomb": "c"}
-
-
-def legend_outside(axes, **options) -> None:
-    """The legend to the right of the axes, never over the data; only for labelled
-    artists (curves left out as off-scale carry no label)."""
-    handles, labels = axes.get_legend_handles_labels()
-    if not handles:
-        return
-    axes.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.02, 1.0),
-                borderaxespad=0.0, fontsize=8, frameon=False, handlelength=2.8, **options)
+# The gid of a panel's note of what is off scale.
+_NOTE = "off-scale"
 
 
 def span_of(*arrays, positive=False):
@@ -98,9 +90,31 @@ def visible(values, low, high) -> bool:
     return bool(np.any(np.isfinite(values) & (values >= low) & (values <= high)))
 
 
-def off_scale_note(axes, count: int) -> None:
-    """Say how many measured points lie outside the range shown (they are not drawn)."""
-    if count:
-        axes.text(0.99, 0.01, f"{count} point{'s' if count > 1 else ''} off scale",
-                  ha="right", va="bottom", fontsize=7, color="0.35",
-                  transform=axes.transAxes)
+def off_scale_note(axes, count: int = 0, curves=()) -> None:
+    """Say what lies outside the range shown and is not drawn: ``count`` measured points,
+    and ``curves``, (label, values) pairs, each with the range of its finite values. A
+    second call adds its lines to the note."""
+    lines = [f"{count} point{'s' if count > 1 else ''} off scale"] if count else []
+    for label, values in curves:
+        values = np.asarray(values, dtype=float)
+        values = values[np.isfinite(values)]
+        span = ""
+        if values.size:
+            low, high = float(values.min()), float(values.max())
+            span = (f" ({_three_digits(low)})" if low == high else
+                    f" ({_three_digits(low)} to {_three_digits(high)})")
+        lines.append(f"{label} off scale{span}")
+    if not lines:
+        return
+    note = next((t for t in axes.texts if t.get_gid() == _NOTE), None)
+    if note is not None:
+        note.set_text("\n".join([note.get_text()] + lines))
+        return
+    axes.text(0.99, 0.01, "\n".join(lines), ha="right", va="bottom", fontsize=7,
+              color="0.35", transform=axes.transAxes, gid=_NOTE)
+
+
+def _three_digits(value) -> str:
+    """Three significant digits without an exponent where a plain number is short:
+    2690, 0.0123, 1.23e+07."""
+    return f"{float(f'{value:.3g}'):g}"

@@ -89,7 +89,7 @@ def record_view(analysis, title: str | None = None, unit: str | None = None) -> 
     if record.kind == "waveform":
         t, x = record.t, record.x
         equilibrium = turning.equilibrium_at(t)
-        turning_x = turning.equilibrium_at(turning.t) + turning.sign * turning.y
+        turning_x = _turning_positions(turning, t, x)
     else:
         t = x = equilibrium = None
         turning_x = turning.y
@@ -104,6 +104,15 @@ def record_view(analysis, title: str | None = None, unit: str | None = None) -> 
                       quantity=_quantity(record.signal_column), unit=unit or None,
                       time_unit=time_unit, period=_finite(turning.period),
                       period_sigma=_finite(turning.period_sigma))
+
+
+def _turning_positions(turning, t, x):
+    """Where each turning point is drawn on the record: a used one at the equilibrium plus
+    its signed amplitude (what the fit sees); a left-out one at the record's value at its
+    time, since its amplitude (a half-cycle fit's magnitude over a held start, a crest in
+    the noise) need not be an amplitude the signal reaches."""
+    fitted = turning.equilibrium_at(turning.t) + turning.sign * turning.y
+    return np.where(turning.used, fitted, np.interp(turning.t, t, x))
 
 
 def _finite(value) -> float:
