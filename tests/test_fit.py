@@ -348,3 +348,16 @@ def test_the_values_alone_are_those_of_the_reported_fit(rng, model):
     values = fit_model_values(t, noisy, sigma, model=model)
     for k in ("y0",) + tuple(model):
         assert abs(values[k] - reported.values[k]) < 1e-4 * reported.stderr[k]
+
+
+def test_turning_points_in_the_noise_below_zero_are_amplitudes_not_samples():
+    """A decay whose last turning points sit in the noise, about half of them below zero
+    by less than their sigma (a Coulomb decay's end): these are amplitudes, and fitted.
+    Without sigma, so many values below zero read as samples of a waveform."""
+    t = np.arange(52.0)
+    y = np.concatenate([1.0 - 0.05 * t[:20], np.tile([0.001, -0.001], 16)])
+    sigma = np.full(t.size, 0.002)
+    fit = fit_decay(t, y, sigma, model="c")
+    assert abs(fit.values["c"] - 0.05) < 3 * fit.stderr["c"]
+    with pytest.raises(FitError, match="like samples of the oscillation"):
+        fit_decay(t, y)

@@ -202,7 +202,7 @@ def _checked(t, y, sigma):
         raise FitError("turning points contain NaN or inf; remove them before fitting")
     if np.any(np.diff(t) <= 0):
         raise FitError("turning-point times must be strictly increasing")
-    if _looks_like_a_waveform(y):
+    if _looks_like_a_waveform(y, sigma):
         raise FitError("these values swing up and down smoothly like samples of the "
                        "oscillation itself, not turning-point amplitudes: fit the waveform "
                        "with mcfit.analyse(t, x), which finds its turning points first")
@@ -225,13 +225,15 @@ def _checked(t, y, sigma):
     return t, y, sigma, noise_from_residuals
 
 
-def _looks_like_a_waveform(y):
-    """Samples of an oscillation, not amplitudes: many below zero, or rising as often as
+def _looks_like_a_waveform(y, sigma=None):
+    """Samples of an oscillation, not amplitudes: many below zero (by more than two
+    ``sigma`` where given: amplitudes within the noise can be), or rising as often as
     falling in five or more swings of four or more steps each (amplitudes fall, or
     scatter step by step in the noise)."""
     if y.size < 20:
         return False
-    if np.count_nonzero(y < 0) > 0.3 * y.size:
+    below = y < (0.0 if sigma is None else -2.0 * np.asarray(sigma, dtype=float))
+    if np.count_nonzero(below) > 0.3 * y.size:
         return True
     rising = np.diff(y) > 0
     runs = 1 + np.count_nonzero(rising[1:] != rising[:-1])
