@@ -18,6 +18,7 @@ from multiprocessing.connection import wait
 from pathlib import Path
 
 from mcfit.errors import InputError, McfitError, UsageError
+from mcfit.files import display_name
 
 __all__ = ["FitOptions", "JobResult", "FileResult", "expand_inputs", "run_jobs",
            "plot_path_for"]
@@ -159,7 +160,7 @@ def _job_for(source, options, plot_path):
                                rate=options.rate, kind=options.kind, domain=options.domain,
                                run=options.run, angle_from=options.angle_from)
     except McfitError as error:
-        return FileResult.failed(source, " ".join(str(error).split()), options)
+        return FileResult.failed(source, _message(error, source), options)
     several = len(records) > 1
     done = [_record_job(source, record, options,
                         run_plot_path(plot_path, record.run) if several else plot_path)
@@ -196,7 +197,7 @@ def _record_job(source, record, options, plot_path):
                                   method=options.method, start=options.start,
                                   end=options.end)
     except McfitError as error:
-        analysis = failed_analysis(record.name, " ".join(str(error).split()), record=record)
+        analysis = failed_analysis(record.name, _message(error, source), record=record)
     # Every row names its record as the user gave it, so scripts can match rows to files.
     name = _display_name(source) + (f"#{record.run}" if record.run else "")
     analysis = dataclasses.replace(analysis, source=name)
@@ -205,7 +206,7 @@ def _record_job(source, record, options, plot_path):
         try:
             _plot(analysis, plot_path, options)
         except (OSError, ValueError, McfitError) as error:
-            plot_error = f"cannot write plot {plot_path}: {error}"
+            plot_error = f"cannot write plot {display_name(plot_path)}: {error}"
     rows = turning_points_rows(analysis) if options.turning_points_out else ""
     return analysis, JobResult(source=analysis.source, status=analysis.status,
                                error=analysis.error, output=_format(analysis, options),
@@ -224,16 +225,29 @@ def _format(analysis, options):
 
 
 def _display_name(source) -> str:
-    return "<stdin>" if source == "-" else str(source)
+    return "<stdin>" if source == "-" else display_name(source)
+
+
+def _message(error, source) -> str:
+    """The error on one line, naming the file as results name it (a newline in the name
+    is shown as \\n, not lost with the other line breaks)."""
+    text = str(error)
+    if source != "-":
+        text = text.replace(str(source), _display_name(source))
+    return " ".join(text.split())
 
 
 def _plot(analysis, path, options):
     from mcfit.plots import save_figure
 
+    from mcfit.plots import figure_title
+
     title = options.title
     run = getattr(analysis.record, "run", None)
     if title is not None and run:
         title = f"{title}, {run}"
+    elif title is None:  # the file name as results show it (matplotlib draws no stray bytes)
+        title = figure_title(_display_name(analysis.record.source), run)
     figure = analysis.figure(title, panels=options.panels, figsize=options.figsize,
                              unit=options.unit)
     save_figure(figure, path)

@@ -9,6 +9,7 @@ stderr and exit with the error's code; anything else is a bug and keeps its trac
 from __future__ import annotations
 
 import contextlib
+import io
 import math
 import os
 import signal
@@ -18,7 +19,8 @@ import warnings
 import click
 
 from mcfit import __version__
-from mcfit.errors import ClosedOutputError, McfitError, UsageError, escape_controls, printable
+from mcfit.errors import (ClosedOutputError, InputError, McfitError, UsageError,
+                          escape_controls, printable)
 from mcfit.files import Output, is_regular_or_new
 from mcfit.options import (BENCH_SECTIONS, CRITERIA, DOMAINS, FIT_METHODS, FORMATS, KINDS,
                            PANELS, SIMULATE_METHODS, check_fit_options, check_plot_name,
@@ -442,6 +444,9 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
                          "records; save it to a file and name that.")
     if "-" in sources:
         jobs = 1  # stdin can be read by one process only
+        if sys.stdin is None:  # started with stdin closed (<&-)
+            raise InputError("cannot read stdin (-): it is closed; pipe a record into mcfit "
+                             "or name a file.")
     if plot_dir is not None:
         taken = set()
         plot_paths = [batch.plot_path_for(s, plot_dir, taken) for s in sources]
@@ -513,7 +518,7 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
     target = Output(output)
     points = _TurningPointsOutput(turning_points_out)
     failures = done = written = 0
-    show_progress = total > 1 and sys.stderr.isatty()
+    show_progress = total > 1 and _is_terminal(sys.stderr)
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
                 if show_progress else None)
     try:
@@ -549,6 +554,14 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
     target.commit()
     points.commit()
     return failures
+
+
+def _is_terminal(stream) -> bool:
+    """Whether ``stream`` is a terminal; False for a closed or missing stream."""
+    try:
+        return stream is not None and stream.isatty()
+    except (AttributeError, OSError, ValueError):
+        return False
 
 
 def _write_result(result, target, points, output_format, written):
@@ -689,4 +702,62 @@ def main(argv=None):
         warnings.simplefilter("ignore")
         os.environ["PYTHONWARNINGS"] = "ignore"  # worker processes that start afresh
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    _hold_closed_streams()
+    _messages_never_fail()
     cli.main(args=argv, prog_name="mcfit")
+
+
+def _hold_closed_streams():
+    """Put /dev/null on a standard descriptor (0, 1, 2) the process was started without.
+
+    Else the next file opened takes its number, and whatever writes to "stderr" (a library
+    in a worker) writes into the results. ``sys.stdin`` and ``sys.stdout`` stay None, so
+    that reading stdin or writing results to stdout says that it is closed.
+    """
+    for descriptor in (0, 1, 2):
+        try:
+            os.fstat(descriptor)
+        except OSError:
+            devnull = os.open(os.devnull, os.O_RDWR)
+            if devnull != descriptor:
+                os.dup2(devnull, descriptor)
+                os.close(devnull)
+
+
+class _MessageWriter(io.RawIOBase):
+    """The descriptor of stderr, dropping what it cannot take (a full disk, a closed
+    pipe) instead of raising: messages are secondary to results."""
+
+    def __init__(self, descriptor: int):
+        super().__init__()
+        self.descriptor = descriptor
+
+    def writable(self):
+        return True
+
+    def fileno(self):
+        return self.descriptor
+
+    def isatty(self):
+        return os.isatty(self.descriptor)
+
+    def write(self, data):
+        try:
+            return os.write(self.descriptor, data)
+        except OSError:
+            return len(data)
+
+
+def _messages_never_fail():
+    """Make ``sys.stderr`` a stream whose writes never fail (see :class:`_MessageWriter`);
+    a stderr that is not descriptor 2 (a test's capture) is left alone."""
+    stream = sys.stderr
+    try:
+        if stream is not None and stream.fileno() != 2:
+            return
+    except (AttributeError, OSError, ValueError):
+        return
+    encoding = getattr(stream, "encoding", None) or "utf-8"
+    sys.stderr = io.TextIOWrapper(io.BufferedWriter(_MessageWriter(2)), encoding=encoding,
+                                  errors="backslashreplace", line_buffering=True,
+                                  write_through=True)

@@ -15,9 +15,27 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mcfit.errors import ClosedOutputError, OutputError
+from mcfit.errors import ClosedOutputError, OutputError, escape_controls
 
-__all__ = ["temporary_beside", "replace_atomically", "is_regular_or_new", "Output"]
+__all__ = ["temporary_beside", "replace_atomically", "is_regular_or_new", "Output",
+           "display_name"]
+
+# The escapes a reader knows from Python's own strings; other controls are shown \xNN.
+_NAMED_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def display_name(path) -> str:
+    """A file name as it can be shown and written in any output: the bytes of a name that
+    is not UTF-8 as ``\\xe9``, a newline as ``\\n``, other control characters escaped.
+
+    A name given on the command line keeps its undecodable bytes as lone surrogates
+    (``os.fsdecode``); no text encoding can write those, so a result names such a file
+    escaped. ``"-"`` stays as it is.
+    """
+    text = os.fsencode(os.fspath(path)).decode("utf-8", "backslashreplace")
+    for character, escape in _NAMED_ESCAPES.items():
+        text = text.replace(character, escape)
+    return escape_controls(text)
 
 
 def is_regular_or_new(path) -> bool:
@@ -81,6 +99,7 @@ _ADVICE = {
     errno.EIO: "the device reported an error; check it, or write elsewhere",
     errno.ENOENT: "check that the directory exists and is writable",
     errno.ENOTDIR: "check that the directory exists and is writable",
+    errno.EBADF: "open it, or write to a file instead",
 }
 
 
@@ -105,6 +124,8 @@ class Output:
         self._existed = path != "-" and os.path.exists(path)
         try:
             if path == "-":
+                if sys.stdout is None:  # started with stdout closed (>&-)
+                    raise OSError(errno.EBADF, "it is closed")
                 self.stream = sys.stdout
             elif not is_regular_or_new(path):
                 self.stream = open(path, "w", newline="")
