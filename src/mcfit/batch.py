@@ -12,6 +12,8 @@ import importlib
 import multiprocessing
 import os
 import signal
+import sys
+import time
 from collections import deque
 from dataclasses import dataclass
 from multiprocessing.connection import wait
@@ -21,7 +23,7 @@ from mcfit.errors import InputError, McfitError, UsageError
 from mcfit.files import display_name
 
 __all__ = ["FitOptions", "JobResult", "FileResult", "expand_inputs", "run_jobs",
-           "plot_path_for"]
+           "plot_path_for", "available_cpus"]
 
 # What a directory's records are called (any file named on the command line is read by
 # its content): text, gzip-compressed text, LabVIEW and logger files, spreadsheets.
@@ -253,16 +255,26 @@ def _plot(analysis, path, options):
     save_figure(figure, path)
 
 
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the system has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
     """Yield a :class:`FileResult` per source, in input order, each as soon as it is ready.
 
-    With ``jobs`` > 1 the records are fitted by worker processes. A worker that dies (the
-    out-of-memory killer, a crash in a library) costs only its record, reported as an error
-    that names the cause; a new worker takes its place. Closing the generator ends the
-    workers at once.
+    With ``jobs`` > 1 the records are fitted by worker processes, at most one per available
+    CPU (:func:`available_cpus`: more would only share the CPUs and the memory). A worker
+    that dies (the out-of-memory killer, a crash in a library) costs only its record,
+    reported as an error that names the cause; a new worker takes its place. Closing the
+    generator ends the workers at once; a worker whose parent dies ends too.
     """
     arguments = [(source, options, plot) for source, plot in zip(sources, plot_paths)]
-    if jobs <= 1 or len(arguments) <= 1:
+    jobs = min(jobs, len(arguments), available_cpus())
+    if jobs <= 1:
         for argument in arguments:
             yield _job(argument)
         return
@@ -271,24 +283,39 @@ def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
         # once (about 1.4 s of CPU) instead of once in every worker.
         for module in ("mcfit.analysis", "mcfit.records", "mcfit.report"):
             importlib.import_module(module)
-    yield from _run_in_workers(arguments, min(jobs, len(arguments)))
+    yield from _run_in_workers(arguments, jobs)
+
+
+# How long a worker asked to stop, or killed, may take to be gone before it is left behind.
+_STOP_SECONDS = 5.0
 
 
 class _Worker:
-    """One worker process and the pipe that carries its jobs and results."""
+    """One worker process and the pipe that carries its jobs and results.
 
-    def __init__(self):
+    The worker joins ``pool`` as soon as its process exists, before a stop signal can be
+    delivered, so that whoever ends the pool ends it too.
+    """
+
+    def __init__(self, pool: list):
         self.connection, child = multiprocessing.Pipe()
-        self.process = multiprocessing.Process(target=_work, args=(child,), daemon=True)
+        # A forked or spawned worker's parent is this process; a forkserver's is not.
+        parent = os.getpid() if multiprocessing.get_start_method() in ("fork", "spawn") \
+            else None
+        self.process = multiprocessing.Process(target=_work, args=(child, parent),
+                                               daemon=True)
         self.task = None  # (index, argument) of the record being fitted
         # Blocked while the process starts, so that a stop signal cannot reach the new
-        # process before it ignores it (it would print a KeyboardInterrupt traceback).
+        # process before it ignores it (it would print a KeyboardInterrupt traceback), nor
+        # interrupt this one between the start and joining the pool (the worker, which
+        # ignores SIGTERM, would then be waited for forever at exit).
         blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
             self.process.start()
+            pool.append(self)
+            child.close()
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-        child.close()
 
     def give(self, task):
         """Send a record; a worker that died meanwhile is found by its sentinel."""
@@ -302,7 +329,8 @@ class _Worker:
         """End the process: at once if it is fitting a record that is not wanted any more.
 
         An idle worker is told to stop; closing the pipe would not do, as forked siblings
-        hold copies of its end.
+        hold copies of its end. Bounded: a worker still there after :data:`_STOP_SECONDS`
+        is killed, and one that outlives that too (stuck in the kernel) is left.
         """
         if self.task is None:
             try:
@@ -313,23 +341,20 @@ class _Worker:
             self.process.kill()
             self.task = None
         self.connection.close()
-        self.process.join(timeout=5)
+        self.process.join(timeout=_STOP_SECONDS)
         if self.process.exitcode is None:
             self.process.kill()
-            self.process.join()
+            self.process.join(timeout=_STOP_SECONDS)
 
 
-def _work(connection):
-    """Worker process: fit the records sent through ``connection`` until it is closed."""
+def _work(connection, parent=None):
+    """Worker process: fit the records sent through ``connection`` until it is closed, or
+    until its parent process (``parent``, where known) is gone."""
     for stop in STOP_SIGNALS:
         signal.signal(stop, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
-    parent = os.getppid()
+    _end_with_parent(parent)
     while True:
-        # A parent killed outright cannot say stop: a new parent process id tells instead.
-        while not connection.poll(1.0):
-            if os.getppid() != parent:
-                return
         try:
             task = connection.recv()
         except EOFError:
@@ -338,6 +363,46 @@ def _work(connection):
             return
         index, argument = task
         connection.send((index, _job(argument)))
+
+
+def _end_with_parent(parent):
+    """End this process when its parent dies, even killed outright in the middle of a fit.
+
+    On Linux the kernel sends SIGKILL (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon
+    thread polls the parent's process id, which changes when the parent is gone.
+    ``parent``, the process id the parent had when it started this one (None: the current
+    parent), also catches a parent that died before this process could ask.
+    """
+    parent = os.getppid() if parent is None else parent
+    if not _kill_with_parent():
+        import threading
+
+        threading.Thread(target=_watch_parent, args=(parent,), daemon=True,
+                         name="mcfit-parent-watch").start()
+    if os.getppid() != parent:  # died before the request above was in place
+        os._exit(1)
+
+
+def _kill_with_parent() -> bool:
+    """Ask the kernel to SIGKILL this process when its parent dies; whether it could."""
+    if not sys.platform.startswith("linux"):
+        return False
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+
+
+def _watch_parent(parent, interval=0.5):
+    while os.getppid() == parent:
+        time.sleep(interval)
+    os._exit(1)
 
 
 def _run_in_workers(arguments, jobs):
@@ -351,7 +416,7 @@ def _run_in_workers(arguments, jobs):
                 workers.remove(worker)  # died between two records: nothing lost
                 worker.stop()
             while waiting and len(workers) < jobs:
-                workers.append(_Worker())
+                _Worker(workers)
             for worker in workers:
                 if worker.task is None and waiting:
                     worker.give(waiting.popleft())

@@ -465,6 +465,7 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
                              f"{error.strerror or error}") from error
     options = batch.FitOptions(output_format=output_format, **options)
     if dask is None:
+        _note_jobs_cap(jobs, len(sources), batch.available_cpus())
         results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
     else:
         from mcfit import dask_jobs
@@ -476,6 +477,13 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
                               turning_points_out=turning_points_out)
     finally:
         results.close()  # ends the worker processes at once after an error
+
+
+def _note_jobs_cap(jobs, records, cpus):
+    """Say so when --jobs asks for more workers than there are CPUs to run them."""
+    if min(jobs, records) > cpus:
+        click.echo(f"Note: --jobs {jobs} is more than the {cpus} CPU{'s' * (cpus > 1)} "
+                   f"available; running {cpus} worker process{'es' * (cpus > 1)}.", err=True)
 
 
 def _refuse_outputs_that_clash(outputs, arguments, sources):
