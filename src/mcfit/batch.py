@@ -12,6 +12,7 @@ import importlib
 import multiprocessing
 import os
 import signal
+import stat
 import sys
 import time
 from collections import deque
@@ -20,9 +21,10 @@ from multiprocessing.connection import wait
 from pathlib import Path
 
 from mcfit.errors import InputError, McfitError, UsageError
-from mcfit.files import display_name
+from mcfit.files import describe_os_error, display_name
 
-__all__ = ["FitOptions", "JobResult", "FileResult", "expand_inputs", "run_jobs",
+__all__ = ["FitOptions", "JobResult", "FileResult", "Inputs", "find_inputs", "expand_inputs",
+           "run_jobs",
            "plot_path_for", "available_cpus"]
 
 # What a directory's records are called (any file named on the command line is read by
@@ -97,25 +99,151 @@ class FileResult:
                               error=analysis.error, output=_format(analysis, options)),))
 
 
-def expand_inputs(arguments) -> list[str]:
-    """Files as given, with each directory replaced by its record files (sorted)."""
-    files = []
+# The first line of each file mcfit writes: results as CSV, turning points as CSV, a text
+# report, JSON Lines. A directory's file that starts so is mcfit's output, not a record
+# (tests/test_folders.py holds these to mcfit.report's headers).
+OUTPUT_SIGNATURES = ("source,status,model,", "source,t,amplitude,sigma,used,",
+                     "mcfit report: ", '{"source": ')
+_SIGNATURE_BYTES = 64
+_LISTED = 5  # names given in a note before "and N more"
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """The files a batch fits, from the files and directories it was given.
+
+    ``notes`` say what was left out and why (a subfolder, a broken link, mcfit's own
+    output, a file named twice); ``problems`` are directories that could not be listed:
+    the others are fitted and the batch counts each problem as a failure.
+    """
+
+    files: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+    problems: tuple[str, ...] = ()
+
+
+def find_inputs(arguments) -> Inputs:
+    """The record files of ``arguments`` (files, ``-`` and directories), each once.
+
+    A directory gives its record files (by extension), sorted, leaving out subfolders,
+    anything that is not a regular file, and the files mcfit wrote (by their first line:
+    :data:`OUTPUT_SIGNATURES`), each named in a note. Raises :class:`UsageError` for a
+    directory with no record files, naming what it holds instead.
+    """
+    files, notes, problems = [], [], []
     for argument in arguments:
         if argument != "-" and os.path.isdir(argument):
             try:
-                found = sorted(str(p) for p in Path(argument).iterdir()
-                               if p.is_file() and p.name.lower().endswith(RECORD_EXTENSIONS))
+                found, skipped = _directory_records(argument)
             except OSError as error:
-                raise InputError(f"cannot list directory {argument}: "
-                                 f"{error.strerror or error}. Check its permissions, or name "
-                                 "the files instead.") from None
+                problems.append(f"cannot list directory {display_name(argument)}: "
+                                f"{error.strerror or error}. Check its permissions, or name "
+                                "the files instead.")
+                continue
             if not found:
-                raise UsageError(f"directory {argument} holds no record files "
-                                 f"({', '.join(RECORD_EXTENSIONS)}); name the files instead.")
+                held = f"; it holds {'; '.join(skipped)}" if skipped else ""
+                raise UsageError(f"directory {display_name(argument)} holds no record files "
+                                 f"({', '.join(RECORD_EXTENSIONS)}){held}; name the files "
+                                 "instead.")
+            notes.extend(f"{display_name(argument)}: left out {what}." for what in skipped)
             files.extend(found)
         else:
             files.append(argument)
-    return files
+    files, repeated = _once_each(files)
+    return Inputs(tuple(files), tuple(notes + repeated), tuple(problems))
+
+
+def expand_inputs(arguments) -> list[str]:
+    """The record files of ``arguments`` (see :func:`find_inputs`), each once; raises
+    :class:`InputError` for a directory that cannot be listed."""
+    inputs = find_inputs(arguments)
+    if inputs.problems:
+        raise InputError(inputs.problems[0])
+    return list(inputs.files)
+
+
+def _directory_records(directory):
+    """(record files, what was left out in words) of one directory; OSError if unlistable."""
+    found, subfolders, special, own = [], [], [], []
+    with os.scandir(directory) as entries:
+        for entry in entries:
+            path = str(Path(directory) / entry.name)
+            if entry.is_dir():
+                if not entry.name.startswith("."):
+                    subfolders.append(path)
+            elif not entry.is_file():
+                if not entry.name.startswith("."):
+                    special.append(f"{display_name(path)} ({_kind_of(path)})")
+            elif entry.name.lower().endswith(RECORD_EXTENSIONS):
+                (own if _written_by_mcfit(path) else found).append(path)
+    skipped = []
+    if subfolders:
+        skipped.append(f"its subfolders {_listed(sorted(subfolders))} (name them to fit "
+                       "their records)")
+    if special:
+        skipped.append(f"{_listed(sorted(special))}: not regular files")
+    if own:
+        skipped.append(f"{_listed(sorted(own))}: output of mcfit, not records")
+    return sorted(found), skipped
+
+
+def _kind_of(path) -> str:
+    """What a directory entry that is neither a regular file nor a directory is."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return "a broken symbolic link"
+    except OSError as error:
+        return f"not readable: {error.strerror or error}"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file"
+
+
+def _written_by_mcfit(path) -> bool:
+    """Whether the file starts as mcfit's outputs do (an unreadable one is left to the
+    reader, which says why)."""
+    try:
+        with open(path, "rb") as file:
+            head = file.read(_SIGNATURE_BYTES)
+    except OSError:
+        return False
+    return head.decode("latin-1").startswith(OUTPUT_SIGNATURES)
+
+
+def _listed(names) -> str:
+    names = [display_name(name) for name in names]
+    more = len(names) - _LISTED
+    return ", ".join(names[:_LISTED]) + (f" and {more} more" if more > 0 else "")
+
+
+def _once_each(files):
+    """``files`` without the second naming of a file (``a.csv`` and ``./a.csv``, or a.csv
+    and its directory), with a note for each left out."""
+    kept, seen, notes = [], {}, []
+    for file in files:
+        key = _identity(file)
+        if key in seen:
+            notes.append(f"{display_name(file)} is {display_name(seen[key])}, named before; "
+                         "fitted once.")
+            continue
+        seen[key] = file
+        kept.append(file)
+    return kept, notes
+
+
+def _identity(file):
+    """What tells two names of one file apart from two files: device and inode, or the
+    resolved path of a file that does not exist (its error is then given once)."""
+    if file == "-":
+        return "-"
+    try:
+        status = os.stat(file)
+        return (status.st_dev, status.st_ino)
+    except (OSError, ValueError):
+        return os.path.realpath(file)
 
 
 def plot_path_for(source: str, plot_dir: str, taken: set) -> str:
@@ -144,7 +272,7 @@ def _job(argument):
         return _job_for(source, options, plot_path)
     except MemoryError:
         message = (f"not enough memory to fit {_display_name(source)}; fit a shorter part of "
-                   "the record, or run with --jobs 1.")
+                   "the record, or run with `jobs=1`.")
     except Exception as error:  # noqa: BLE001 - a bug must not end the batch
         detail = " ".join(str(error).split())
         detail = detail if len(detail) <= 300 else detail[:297] + "..."
@@ -207,7 +335,10 @@ def _record_job(source, record, options, plot_path):
     if plot_path is not None and analysis.status == "ok":
         try:
             _plot(analysis, plot_path, options)
-        except (OSError, ValueError, McfitError) as error:
+        except OSError as error:  # its message would name the temporary file
+            plot_error = f"cannot write plot {display_name(plot_path)}: " \
+                         f"{describe_os_error(error)}."
+        except (ValueError, McfitError) as error:
             plot_error = f"cannot write plot {display_name(plot_path)}: {error}"
     rows = turning_points_rows(analysis) if options.turning_points_out else ""
     return analysis, JobResult(source=analysis.source, status=analysis.status,
@@ -467,5 +598,5 @@ def _lost(worker):
     else:
         cause = f"ended with exit code {code}"
     message = (f"the worker process fitting {_display_name(source)} {cause}; fit it again "
-               "alone, with --jobs 1, or free some memory.")
+               "alone, with `jobs=1`, or free some memory.")
     return FileResult.failed(source, message, options)

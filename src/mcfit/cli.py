@@ -23,8 +23,9 @@ from mcfit.errors import (ClosedOutputError, InputError, McfitError, UsageError,
                           escape_controls, printable)
 from mcfit.files import Output, is_regular_or_new
 from mcfit.options import (BENCH_SECTIONS, CRITERIA, DOMAINS, FIT_METHODS, FORMATS, KINDS,
-                           PANELS, SIMULATE_METHODS, check_fit_options, check_plot_name,
-                           check_read_options, for_command_line, parse_figsize, parse_panels)
+                           PANELS, SAMPLES_PER_CYCLE, SIMULATE_METHODS, check_fit_options,
+                           check_plot_name, check_read_options, for_command_line,
+                           parse_figsize, parse_panels)
 
 __all__ = ["cli", "main", "McfitGroup"]
 
@@ -221,6 +222,12 @@ def simulate(a, b, c, y0, period, duration, rate, noise, offset, drift, seed, me
     if dt is not None and method not in ("cromer-euler", "symplectic"):
         raise UsageError(f"--dt applies only to --method cromer-euler or symplectic, "
                          f"not {method}; drop --dt or choose one of those methods.")
+    if rate * period < SAMPLES_PER_CYCLE:  # the record would alias, or mcfit could not fit it
+        per_cycle = f"{rate * period:.3g} sample{'' if rate * period == 1 else 's'}"
+        raise UsageError(f"--rate {rate:g} gives {per_cycle} a cycle of "
+                         f"--period {period:g} s; mcfit finds turning points from "
+                         f"{SAMPLES_PER_CYCLE} a cycle: give --rate "
+                         f"{_rounded_up(SAMPLES_PER_CYCLE / period):g} or more.")
     n_samples = math.floor(duration * rate) + 1
     if n_samples > _MAX_SAMPLES:
         raise UsageError(f"--duration {duration:g} at --rate {rate:g} gives {n_samples} samples, "
@@ -245,6 +252,12 @@ def simulate(a, b, c, y0, period, duration, rate, noise, offset, drift, seed, me
             kept = "" if output == "-" else f"; {output} was left as it was"
             click.echo(f"\nInterrupted: the record was not written whole{kept}.", err=True)
             sys.exit(_exit_code_of(interruption))
+
+
+def _rounded_up(value, digits=4):
+    """``value`` rounded up to ``digits`` significant digits (a rate that is enough)."""
+    scale = 10.0 ** (digits - 1 - math.floor(math.log10(value)))
+    return math.ceil(value * scale) / scale
 
 
 _FIT_HELP = """Fit the damping law to each record FILE and report a, b, c and Q(t).
@@ -433,7 +446,10 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
     number of failed records."""
     from mcfit import batch
 
-    sources = batch.expand_inputs(files)
+    inputs = batch.find_inputs(files)
+    if not inputs.files:  # every directory named was unlistable
+        raise InputError(inputs.problems[0])
+    sources = list(inputs.files)
     if plot_file is not None and len(sources) != 1:
         raise UsageError("--plot takes one record; for several use --plot-dir DIR.")
     if output != "-" and os.path.isdir(output):  # checked here, not by click: one line
@@ -456,7 +472,7 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
         plots = [("--plot", plot_file)] if plot_file is not None else []
     outputs = (([("-o", output)] if output != "-" else []) + plots
                + ([("--turning-points-out", turning_points_out)] if turning_points_out else []))
-    _refuse_outputs_that_clash(outputs, files, sources)
+    _refuse_outputs_that_clash(outputs, sources)
     if plot_dir is not None:
         try:
             os.makedirs(plot_dir, exist_ok=True)
@@ -464,6 +480,10 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
             raise McfitError(f"cannot create plot directory {plot_dir}: "
                              f"{error.strerror or error}") from error
     options = batch.FitOptions(output_format=output_format, **options)
+    for note in inputs.notes:
+        click.echo(f"Note: {printable(note)}", err=True)
+    for problem in inputs.problems:  # counted as failures: the batch exits 1
+        click.echo(f"Error: {printable(problem)}", err=True)
     if dask is None:
         _note_jobs_cap(jobs, len(sources), batch.available_cpus())
         results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
@@ -472,9 +492,9 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
 
         results = dask_jobs.run_jobs(sources, options, plot_paths, dask)
     try:
-        return _write_results(results, sources, output_format, output,
-                              bootstrap=options.bootstrap > 0,
-                              turning_points_out=turning_points_out)
+        return len(inputs.problems) + _write_results(
+            results, sources, output_format, output, bootstrap=options.bootstrap > 0,
+            turning_points_out=turning_points_out)
     finally:
         results.close()  # ends the worker processes at once after an error
 
@@ -486,11 +506,12 @@ def _note_jobs_cap(jobs, records, cpus):
                    f"available; running {cpus} worker process{'es' * (cpus > 1)}.", err=True)
 
 
-def _refuse_outputs_that_clash(outputs, arguments, sources):
+def _refuse_outputs_that_clash(outputs, sources):
     """Usage errors, before any work, for outputs that would destroy each other or an input.
 
     ``outputs`` holds (option, path) pairs. A device or a FIFO is written in place and
-    destroys nothing, so only regular files (or new names) are checked.
+    destroys nothing, so only regular files (or new names) are checked. An output inside a
+    directory being read is fine: a later run leaves it out (mcfit knows its own files).
     """
     outputs = [(option, path) for option, path in outputs if is_regular_or_new(path)]
     seen = {}
@@ -505,13 +526,6 @@ def _refuse_outputs_that_clash(outputs, arguments, sources):
                     and os.path.samefile(path, source):
                 raise UsageError(f"{option} {path} is one of the input records; choose "
                                  "another output file, inputs are never overwritten.")
-        folder = os.path.realpath(os.path.dirname(os.path.abspath(path)))
-        for argument in arguments:
-            if argument != "-" and os.path.isdir(argument) \
-                    and os.path.realpath(argument) == folder:
-                raise UsageError(f"{option} {path} is inside {argument}, a directory being "
-                                 "read: a later run would read it as a record. Write it "
-                                 "to another directory.")
 
 
 def _write_results(results, sources, output_format, output, bootstrap=False,
