@@ -213,7 +213,7 @@ def test_a_file_named_twice_is_fitted_once(runner, tmp_path, monkeypatch):
     result = runner.invoke(cli, ["a.csv", ".", "./b.csv", "--format", "csv"])
     assert result.exit_code == 0, result.output
     assert [row["source"] for row in _rows(result.stdout)] == ["a.csv", "b.csv"]
-    assert result.stderr == ("Note: a.csv is a.csv, named before; fitted once.\n"
+    assert result.stderr == ("Note: a.csv is named twice; fitted once.\n"
                              "Note: ./b.csv is b.csv, named before; fitted once.\n")
 
 

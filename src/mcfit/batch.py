@@ -226,8 +226,9 @@ def _once_each(files):
     for file in files:
         key = _identity(file)
         if key in seen:
-            notes.append(f"{display_name(file)} is {display_name(seen[key])}, named before; "
-                         "fitted once.")
+            again = ("named twice" if file == seen[key]
+                     else f"{display_name(seen[key])}, named before")
+            notes.append(f"{display_name(file)} is {again}; fitted once.")
             continue
         seen[key] = file
         kept.append(file)

@@ -278,7 +278,7 @@ Exit codes:
   0  every record was fitted
   1  at least one record failed: an Error line on stderr says why (so does its
      JSON or CSV row, and its block in a text report written with -o); the
-     others are still reported
+     others are still reported. Also a directory that could not be listed.
   2  usage error (bad or contradictory options); an option that one file
      cannot satisfy (a column it lacks) fails that file instead (1)
 
