@@ -71,7 +71,7 @@ def test_replaces_an_existing_file(runner, tmp_path):
     out = tmp_path / "rec.csv"
     out.write_text("old\n")
     out.chmod(0o640)
-    result = runner.invoke(cli, ["simulate", "--duration", "0.5", "--rate", "4", "-o", str(out)])
+    result = runner.invoke(cli, ["simulate", "--duration", "0.2", "--rate", "10", "-o", str(out)])
     assert result.exit_code == 0, result.output
     assert out.read_text().splitlines()[0] == "t,x"
     assert len(out.read_text().splitlines()) == 4
@@ -120,8 +120,8 @@ def test_help_and_version(runner):
 
 
 def test_python_dash_m_runs_the_same_command(tmp_path):
-    result = subprocess.run([sys.executable, "-m", "mcfit", "simulate", "--duration", "1",
-                             "--rate", "5", "--b", "0.1"], capture_output=True, text=True,
+    result = subprocess.run([sys.executable, "-m", "mcfit", "simulate", "--duration", "0.5",
+                             "--rate", "10", "--b", "0.1"], capture_output=True, text=True,
                             check=True)
     assert result.stdout.splitlines()[0] == "t,x"
     assert len(result.stdout.splitlines()) == 7
@@ -145,6 +145,6 @@ def test_group_can_route_to_a_default_command(runner):
     group.add_command(cli.commands["simulate"])
     assert runner.invoke(group, ["a.csv", "b.csv"]).stdout == "a.csv b.csv\n"
     assert runner.invoke(group, ["echo", "x"]).stdout == "x\n"
-    assert runner.invoke(group, ["simulate", "--duration", "0", "--rate", "1"]).stdout == \
+    assert runner.invoke(group, ["simulate", "--duration", "0", "--rate", "8"]).stdout == \
         "t,x\n0,1\n"
 

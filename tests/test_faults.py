@@ -346,14 +346,10 @@ def test_an_output_through_a_symbolic_link_keeps_the_link(runner, tmp_path):
     (lambda d, r: [r, "-o", d / "plots" / "run.png", "--plot-dir", d / "plots"],
      "-o {d}/plots/run.png and --plot-dir both name {d}/plots/run.png; one would overwrite "
      "the other. Give them different names."),
-    (lambda d, r: [d, "-o", d / "results.csv", "--format", "csv"],
-     "-o {d}/results.csv is inside {d}, a directory being read: a later run would read it "
-     "as a record. Write it to another directory."),
-    (lambda d, r: [d, "--plot", d / "run.png"],
-     "--plot {d}/run.png is inside {d}, a directory being read: a later run would read it "
-     "as a record. Write it to another directory."),
-], ids=["-o and --plot", "-o and --plot-dir", "-o in an input directory",
-        "--plot in an input directory"])
+    (lambda d, r: [d, "-o", r, "--format", "csv"],
+     "-o {d}/run.csv is one of the input records; choose another output file, inputs are "
+     "never overwritten."),
+], ids=["-o and --plot", "-o and --plot-dir", "-o on a record of an input directory"])
 def test_outputs_that_clash_are_usage_errors_before_any_work(runner, tmp_path, make, message):
     record = _record(tmp_path / "run.csv")
     before = sorted(p.name for p in tmp_path.iterdir())

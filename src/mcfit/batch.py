@@ -12,15 +12,20 @@ import importlib
 import multiprocessing
 import os
 import signal
+import stat
+import sys
+import time
 from collections import deque
 from dataclasses import dataclass
 from multiprocessing.connection import wait
 from pathlib import Path
 
 from mcfit.errors import InputError, McfitError, UsageError
+from mcfit.files import describe_os_error, display_name
 
-__all__ = ["FitOptions", "JobResult", "FileResult", "expand_inputs", "run_jobs",
-           "plot_path_for"]
+__all__ = ["FitOptions", "JobResult", "FileResult", "Inputs", "find_inputs", "expand_inputs",
+           "run_jobs",
+           "plot_path_for", "available_cpus"]
 
 # What a directory's records are called (any file named on the command line is read by
 # its content): text, gzip-compressed text, LabVIEW and logger files, spreadsheets.
@@ -95,25 +100,152 @@ class FileResult:
                               error=analysis.error, output=_format(analysis, options)),))
 
 
-def expand_inputs(arguments) -> list[str]:
-    """Files as given, with each directory replaced by its record files (sorted)."""
-    files = []
+# The first line of each file mcfit writes: results as CSV, turning points as CSV, a text
+# report, JSON Lines. A directory's file that starts so is mcfit's output, not a record
+# (tests/test_folders.py holds these to mcfit.report's headers).
+OUTPUT_SIGNATURES = ("source,status,model,", "source,t,amplitude,sigma,used,",
+                     "mcfit report: ", '{"source": ')
+_SIGNATURE_BYTES = 64
+_LISTED = 5  # names given in a note before "and N more"
+
+
+@dataclass(frozen=True)
+class Inputs:
+    """The files a batch fits, from the files and directories it was given.
+
+    ``notes`` say what was left out and why (a subfolder, a broken link, mcfit's own
+    output, a file named twice); ``problems`` are directories that could not be listed:
+    the others are fitted and the batch counts each problem as a failure.
+    """
+
+    files: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+    problems: tuple[str, ...] = ()
+
+
+def find_inputs(arguments) -> Inputs:
+    """The record files of ``arguments`` (files, ``-`` and directories), each once.
+
+    A directory gives its record files (by extension), sorted, leaving out subfolders,
+    anything that is not a regular file, and the files mcfit wrote (by their first line:
+    :data:`OUTPUT_SIGNATURES`), each named in a note. Raises :class:`UsageError` for a
+    directory with no record files, naming what it holds instead.
+    """
+    files, notes, problems = [], [], []
     for argument in arguments:
         if argument != "-" and os.path.isdir(argument):
             try:
-                found = sorted(str(p) for p in Path(argument).iterdir()
-                               if p.is_file() and p.name.lower().endswith(RECORD_EXTENSIONS))
+                found, skipped = _directory_records(argument)
             except OSError as error:
-                raise InputError(f"cannot list directory {argument}: "
-                                 f"{error.strerror or error}. Check its permissions, or name "
-                                 "the files instead.") from None
+                problems.append(f"cannot list directory {display_name(argument)}: "
+                                f"{error.strerror or error}. Check its permissions, or name "
+                                "the files instead.")
+                continue
             if not found:
-                raise UsageError(f"directory {argument} holds no record files "
-                                 f"({', '.join(RECORD_EXTENSIONS)}); name the files instead.")
+                held = f"; it holds {'; '.join(skipped)}" if skipped else ""
+                raise UsageError(f"directory {display_name(argument)} holds no record files "
+                                 f"({', '.join(RECORD_EXTENSIONS)}){held}; name the files "
+                                 "instead.")
+            notes.extend(f"{display_name(argument)}: left out {what}." for what in skipped)
             files.extend(found)
         else:
             files.append(argument)
-    return files
+    files, repeated = _once_each(files)
+    return Inputs(tuple(files), tuple(notes + repeated), tuple(problems))
+
+
+def expand_inputs(arguments) -> list[str]:
+    """The record files of ``arguments`` (see :func:`find_inputs`), each once; raises
+    :class:`InputError` for a directory that cannot be listed."""
+    inputs = find_inputs(arguments)
+    if inputs.problems:
+        raise InputError(inputs.problems[0])
+    return list(inputs.files)
+
+
+def _directory_records(directory):
+    """(record files, what was left out in words) of one directory; OSError if unlistable."""
+    found, subfolders, special, own = [], [], [], []
+    with os.scandir(directory) as entries:
+        for entry in entries:
+            path = str(Path(directory) / entry.name)
+            if entry.is_dir():
+                if not entry.name.startswith("."):
+                    subfolders.append(path)
+            elif not entry.is_file():
+                if not entry.name.startswith("."):
+                    special.append(f"{display_name(path)} ({_kind_of(path)})")
+            elif entry.name.lower().endswith(RECORD_EXTENSIONS):
+                (own if _written_by_mcfit(path) else found).append(path)
+    skipped = []
+    if subfolders:
+        skipped.append(f"its subfolders {_listed(sorted(subfolders))} (name them to fit "
+                       "their records)")
+    if special:
+        skipped.append(f"{_listed(sorted(special))}: not regular files")
+    if own:
+        skipped.append(f"{_listed(sorted(own))}: output of mcfit, not records")
+    return sorted(found), skipped
+
+
+def _kind_of(path) -> str:
+    """What a directory entry that is neither a regular file nor a directory is."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        return "a broken symbolic link"
+    except OSError as error:
+        return f"not readable: {error.strerror or error}"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else "not a regular file"
+
+
+def _written_by_mcfit(path) -> bool:
+    """Whether the file starts as mcfit's outputs do (an unreadable one is left to the
+    reader, which says why)."""
+    try:
+        with open(path, "rb") as file:
+            head = file.read(_SIGNATURE_BYTES)
+    except OSError:
+        return False
+    return head.decode("latin-1").startswith(OUTPUT_SIGNATURES)
+
+
+def _listed(names) -> str:
+    names = [display_name(name) for name in names]
+    more = len(names) - _LISTED
+    return ", ".join(names[:_LISTED]) + (f" and {more} more" if more > 0 else "")
+
+
+def _once_each(files):
+    """``files`` without the second naming of a file (``a.csv`` and ``./a.csv``, or a.csv
+    and its directory), with a note for each left out."""
+    kept, seen, notes = [], {}, []
+    for file in files:
+        key = _identity(file)
+        if key in seen:
+            again = ("named twice" if file == seen[key]
+                     else f"{display_name(seen[key])}, named before")
+            notes.append(f"{display_name(file)} is {again}; fitted once.")
+            continue
+        seen[key] = file
+        kept.append(file)
+    return kept, notes
+
+
+def _identity(file):
+    """What tells two names of one file apart from two files: device and inode, or the
+    resolved path of a file that does not exist (its error is then given once)."""
+    if file == "-":
+        return "-"
+    try:
+        status = os.stat(file)
+        return (status.st_dev, status.st_ino)
+    except (OSError, ValueError):
+        return os.path.realpath(file)
 
 
 def plot_path_for(source: str, plot_dir: str, taken: set) -> str:
@@ -142,7 +274,7 @@ def _job(argument):
         return _job_for(source, options, plot_path)
     except MemoryError:
         message = (f"not enough memory to fit {_display_name(source)}; fit a shorter part of "
-                   "the record, or run with --jobs 1.")
+                   "the record, or run with `jobs=1`.")
     except Exception as error:  # noqa: BLE001 - a bug must not end the batch
         detail = " ".join(str(error).split())
         detail = detail if len(detail) <= 300 else detail[:297] + "..."
@@ -160,7 +292,7 @@ def _job_for(source, options, plot_path):
                                rate=options.rate, kind=options.kind, domain=options.domain,
                                run=options.run, angle_from=options.angle_from)
     except McfitError as error:
-        return FileResult.failed(source, " ".join(str(error).split()), options)
+        return FileResult.failed(source, _message(error, source), options)
     several = len(records) > 1
     done = [_record_job(source, record, options,
                         run_plot_path(plot_path, record.run) if several else plot_path)
@@ -197,7 +329,7 @@ def _record_job(source, record, options, plot_path):
                                   method=options.method, start=options.start,
                                   end=options.end)
     except McfitError as error:
-        analysis = failed_analysis(record.name, " ".join(str(error).split()), record=record)
+        analysis = failed_analysis(record.name, _message(error, source), record=record)
     # Every row names its record as the user gave it, so scripts can match rows to files.
     name = _display_name(source) + (f"#{record.run}" if record.run else "")
     analysis = dataclasses.replace(analysis, source=name)
@@ -205,8 +337,11 @@ def _record_job(source, record, options, plot_path):
     if plot_path is not None and analysis.status == "ok":
         try:
             _plot(analysis, plot_path, options)
-        except (OSError, ValueError, McfitError) as error:
-            plot_error = f"cannot write plot {plot_path}: {error}"
+        except OSError as error:  # its message would name the temporary file
+            plot_error = f"cannot write plot {display_name(plot_path)}: " \
+                         f"{describe_os_error(error)}."
+        except (ValueError, McfitError) as error:
+            plot_error = f"cannot write plot {display_name(plot_path)}: {error}"
     rows = turning_points_rows(analysis) if options.turning_points_out else ""
     return analysis, JobResult(source=analysis.source, status=analysis.status,
                                error=analysis.error, output=_format(analysis, options),
@@ -225,31 +360,54 @@ def _format(analysis, options):
 
 
 def _display_name(source) -> str:
-    return "<stdin>" if source == "-" else str(source)
+    return "<stdin>" if source == "-" else display_name(source)
+
+
+def _message(error, source) -> str:
+    """The error on one line, naming the file as results name it (a newline in the name
+    is shown as \\n, not lost with the other line breaks)."""
+    text = str(error)
+    if source != "-":
+        text = text.replace(str(source), _display_name(source))
+    return " ".join(text.split())
 
 
 def _plot(analysis, path, options):
     from mcfit.plots import save_figure
 
+    from mcfit.plots import figure_title
+
     title = options.title
     run = getattr(analysis.record, "run", None)
     if title is not None and run:
         title = f"{title}, {run}"
+    elif title is None:  # the file name as results show it (matplotlib draws no stray bytes)
+        title = figure_title(_display_name(analysis.record.source), run)
     figure = analysis.figure(title, panels=options.panels, figsize=options.figsize,
                              unit=options.unit)
     save_figure(figure, path, dpi=options.dpi)
 
 
+def available_cpus() -> int:
+    """The CPUs this process may run on (its affinity mask where the system has one)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
+
+
 def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
     """Yield a :class:`FileResult` per source, in input order, each as soon as it is ready.
 
-    With ``jobs`` > 1 the records are fitted by worker processes. A worker that dies (the
-    out-of-memory killer, a crash in a library) costs only its record, reported as an error
-    that names the cause; a new worker takes its place. Closing the generator ends the
-    workers at once.
+    With ``jobs`` > 1 the records are fitted by worker processes, at most one per available
+    CPU (:func:`available_cpus`: more would only share the CPUs and the memory). A worker
+    that dies (the out-of-memory killer, a crash in a library) costs only its record,
+    reported as an error that names the cause; a new worker takes its place. Closing the
+    generator ends the workers at once; a worker whose parent dies ends too.
     """
     arguments = [(source, options, plot) for source, plot in zip(sources, plot_paths)]
-    if jobs <= 1 or len(arguments) <= 1:
+    jobs = min(jobs, len(arguments), available_cpus())
+    if jobs <= 1:
         for argument in arguments:
             yield _job(argument)
         return
@@ -258,24 +416,39 @@ def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
         # once (about 1.4 s of CPU) instead of once in every worker.
         for module in ("mcfit.analysis", "mcfit.records", "mcfit.report"):
             importlib.import_module(module)
-    yield from _run_in_workers(arguments, min(jobs, len(arguments)))
+    yield from _run_in_workers(arguments, jobs)
+
+
+# How long a worker asked to stop, or killed, may take to be gone before it is left behind.
+_STOP_SECONDS = 5.0
 
 
 class _Worker:
-    """One worker process and the pipe that carries its jobs and results."""
+    """One worker process and the pipe that carries its jobs and results.
 
-    def __init__(self):
+    The worker joins ``pool`` as soon as its process exists, before a stop signal can be
+    delivered, so that whoever ends the pool ends it too.
+    """
+
+    def __init__(self, pool: list):
         self.connection, child = multiprocessing.Pipe()
-        self.process = multiprocessing.Process(target=_work, args=(child,), daemon=True)
+        # A forked or spawned worker's parent is this process; a forkserver's is not.
+        parent = os.getpid() if multiprocessing.get_start_method() in ("fork", "spawn") \
+            else None
+        self.process = multiprocessing.Process(target=_work, args=(child, parent),
+                                               daemon=True)
         self.task = None  # (index, argument) of the record being fitted
         # Blocked while the process starts, so that a stop signal cannot reach the new
-        # process before it ignores it (it would print a KeyboardInterrupt traceback).
+        # process before it ignores it (it would print a KeyboardInterrupt traceback), nor
+        # interrupt this one between the start and joining the pool (the worker, which
+        # ignores SIGTERM, would then be waited for forever at exit).
         blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
             self.process.start()
+            pool.append(self)
+            child.close()
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-        child.close()
 
     def give(self, task):
         """Send a record; a worker that died meanwhile is found by its sentinel."""
@@ -289,7 +462,8 @@ class _Worker:
         """End the process: at once if it is fitting a record that is not wanted any more.
 
         An idle worker is told to stop; closing the pipe would not do, as forked siblings
-        hold copies of its end.
+        hold copies of its end. Bounded: a worker still there after :data:`_STOP_SECONDS`
+        is killed, and one that outlives that too (stuck in the kernel) is left.
         """
         if self.task is None:
             try:
@@ -300,23 +474,20 @@ class _Worker:
             self.process.kill()
             self.task = None
         self.connection.close()
-        self.process.join(timeout=5)
+        self.process.join(timeout=_STOP_SECONDS)
         if self.process.exitcode is None:
             self.process.kill()
-            self.process.join()
+            self.process.join(timeout=_STOP_SECONDS)
 
 
-def _work(connection):
-    """Worker process: fit the records sent through ``connection`` until it is closed."""
+def _work(connection, parent=None):
+    """Worker process: fit the records sent through ``connection`` until it is closed, or
+    until its parent process (``parent``, where known) is gone."""
     for stop in STOP_SIGNALS:
         signal.signal(stop, signal.SIG_IGN)
     signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)
-    parent = os.getppid()
+    _end_with_parent(parent)
     while True:
-        # A parent killed outright cannot say stop: a new parent process id tells instead.
-        while not connection.poll(1.0):
-            if os.getppid() != parent:
-                return
         try:
             task = connection.recv()
         except EOFError:
@@ -325,6 +496,46 @@ def _work(connection):
             return
         index, argument = task
         connection.send((index, _job(argument)))
+
+
+def _end_with_parent(parent):
+    """End this process when its parent dies, even killed outright in the middle of a fit.
+
+    On Linux the kernel sends SIGKILL (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon
+    thread polls the parent's process id, which changes when the parent is gone.
+    ``parent``, the process id the parent had when it started this one (None: the current
+    parent), also catches a parent that died before this process could ask.
+    """
+    parent = os.getppid() if parent is None else parent
+    if not _kill_with_parent():
+        import threading
+
+        threading.Thread(target=_watch_parent, args=(parent,), daemon=True,
+                         name="mcfit-parent-watch").start()
+    if os.getppid() != parent:  # died before the request above was in place
+        os._exit(1)
+
+
+def _kill_with_parent() -> bool:
+    """Ask the kernel to SIGKILL this process when its parent dies; whether it could."""
+    if not sys.platform.startswith("linux"):
+        return False
+    import ctypes
+
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        return libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0) == 0
+    except (OSError, AttributeError):
+        return False
+
+
+_PR_SET_PDEATHSIG = 1  # from <linux/prctl.h>
+
+
+def _watch_parent(parent, interval=0.5):
+    while os.getppid() == parent:
+        time.sleep(interval)
+    os._exit(1)
 
 
 def _run_in_workers(arguments, jobs):
@@ -338,7 +549,7 @@ def _run_in_workers(arguments, jobs):
                 workers.remove(worker)  # died between two records: nothing lost
                 worker.stop()
             while waiting and len(workers) < jobs:
-                workers.append(_Worker())
+                _Worker(workers)
             for worker in workers:
                 if worker.task is None and waiting:
                     worker.give(waiting.popleft())
@@ -389,5 +600,5 @@ def _lost(worker):
     else:
         cause = f"ended with exit code {code}"
     message = (f"the worker process fitting {_display_name(source)} {cause}; fit it again "
-               "alone, with --jobs 1, or free some memory.")
+               "alone, with `jobs=1`, or free some memory.")
     return FileResult.failed(source, message, options)

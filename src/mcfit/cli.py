@@ -9,6 +9,7 @@ stderr and exit with the error's code; anything else is a bug and keeps its trac
 from __future__ import annotations
 
 import contextlib
+import io
 import math
 import os
 import signal
@@ -18,11 +19,13 @@ import warnings
 import click
 
 from mcfit import __version__
-from mcfit.errors import ClosedOutputError, McfitError, UsageError, escape_controls, printable
+from mcfit.errors import (ClosedOutputError, InputError, McfitError, UsageError,
+                          escape_controls, printable)
 from mcfit.files import Output, is_regular_or_new
 from mcfit.options import (BENCH_SECTIONS, CRITERIA, DOMAINS, FIT_METHODS, FORMATS, KINDS,
-                           PANELS, SIMULATE_METHODS, check_fit_options, check_plot_name,
-                           check_read_options, for_command_line, parse_figsize, parse_panels)
+                           PANELS, SAMPLES_PER_CYCLE, SIMULATE_METHODS, check_fit_options,
+                           check_plot_name, check_read_options, for_command_line,
+                           parse_figsize, parse_panels)
 
 __all__ = ["cli", "main", "McfitGroup"]
 
@@ -219,6 +222,12 @@ def simulate(a, b, c, y0, period, duration, rate, noise, offset, drift, seed, me
     if dt is not None and method not in ("cromer-euler", "symplectic"):
         raise UsageError(f"--dt applies only to --method cromer-euler or symplectic, "
                          f"not {method}; drop --dt or choose one of those methods.")
+    if rate * period < SAMPLES_PER_CYCLE:  # the record would alias, or mcfit could not fit it
+        per_cycle = f"{rate * period:.3g} sample{'' if rate * period == 1 else 's'}"
+        raise UsageError(f"--rate {rate:g} gives {per_cycle} a cycle of "
+                         f"--period {period:g} s; mcfit finds turning points from "
+                         f"{SAMPLES_PER_CYCLE} a cycle: give --rate "
+                         f"{_rounded_up(SAMPLES_PER_CYCLE / period):g} or more.")
     n_samples = math.floor(duration * rate) + 1
     if n_samples > _MAX_SAMPLES:
         raise UsageError(f"--duration {duration:g} at --rate {rate:g} gives {n_samples} samples, "
@@ -245,6 +254,12 @@ def simulate(a, b, c, y0, period, duration, rate, noise, offset, drift, seed, me
             sys.exit(_exit_code_of(interruption))
 
 
+def _rounded_up(value, digits=4):
+    """``value`` rounded up to ``digits`` significant digits (a rate that is enough)."""
+    scale = 10.0 ** (digits - 1 - math.floor(math.log10(value)))
+    return math.ceil(value * scale) / scale
+
+
 _FIT_HELP = """Fit the damping law to each record FILE and report a, b, c and Q(t).
 
 FILE is a CSV/TSV/TXT/DAT or Excel record, - for stdin, or a directory (its record
@@ -263,7 +278,7 @@ Exit codes:
   0  every record was fitted
   1  at least one record failed: an Error line on stderr says why (so does its
      JSON or CSV row, and its block in a text report written with -o); the
-     others are still reported
+     others are still reported. Also a directory that could not be listed.
   2  usage error (bad or contradictory options); an option that one file
      cannot satisfy (a column it lacks) fails that file instead (1)
 
@@ -433,7 +448,10 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
     number of failed records."""
     from mcfit import batch
 
-    sources = batch.expand_inputs(files)
+    inputs = batch.find_inputs(files)
+    if not inputs.files:  # every directory named was unlistable
+        raise InputError(inputs.problems[0])
+    sources = list(inputs.files)
     if plot_file is not None and len(sources) != 1:
         raise UsageError("--plot takes one record; for several use --plot-dir DIR.")
     if output != "-" and os.path.isdir(output):  # checked here, not by click: one line
@@ -444,6 +462,9 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
                          "records; save it to a file and name that.")
     if "-" in sources:
         jobs = 1  # stdin can be read by one process only
+        if sys.stdin is None:  # started with stdin closed (<&-)
+            raise InputError("cannot read stdin (-): it is closed; pipe a record into mcfit "
+                             "or name a file.")
     if plot_dir is not None:
         taken = set()
         plot_paths = [batch.plot_path_for(s, plot_dir, taken) for s in sources]
@@ -453,7 +474,7 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
         plots = [("--plot", plot_file)] if plot_file is not None else []
     outputs = (([("-o", output)] if output != "-" else []) + plots
                + ([("--turning-points-out", turning_points_out)] if turning_points_out else []))
-    _refuse_outputs_that_clash(outputs, files, sources)
+    _refuse_outputs_that_clash(outputs, sources)
     if plot_dir is not None:
         try:
             os.makedirs(plot_dir, exist_ok=True)
@@ -461,25 +482,38 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
             raise McfitError(f"cannot create plot directory {plot_dir}: "
                              f"{error.strerror or error}") from error
     options = batch.FitOptions(output_format=output_format, **options)
+    for note in inputs.notes:
+        click.echo(f"Note: {printable(note)}", err=True)
+    for problem in inputs.problems:  # counted as failures: the batch exits 1
+        click.echo(f"Error: {printable(problem)}", err=True)
     if dask is None:
+        _note_jobs_cap(jobs, len(sources), batch.available_cpus())
         results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
     else:
         from mcfit import dask_jobs
 
         results = dask_jobs.run_jobs(sources, options, plot_paths, dask)
     try:
-        return _write_results(results, sources, output_format, output,
-                              bootstrap=options.bootstrap > 0,
-                              turning_points_out=turning_points_out)
+        return len(inputs.problems) + _write_results(
+            results, sources, output_format, output, bootstrap=options.bootstrap > 0,
+            turning_points_out=turning_points_out)
     finally:
         results.close()  # ends the worker processes at once after an error
 
 
-def _refuse_outputs_that_clash(outputs, arguments, sources):
+def _note_jobs_cap(jobs, records, cpus):
+    """Say so when --jobs asks for more workers than there are CPUs to run them."""
+    if min(jobs, records) > cpus:
+        click.echo(f"Note: --jobs {jobs} is more than the {cpus} CPU{'s' * (cpus > 1)} "
+                   f"available; running {cpus} worker process{'es' * (cpus > 1)}.", err=True)
+
+
+def _refuse_outputs_that_clash(outputs, sources):
     """Usage errors, before any work, for outputs that would destroy each other or an input.
 
     ``outputs`` holds (option, path) pairs. A device or a FIFO is written in place and
-    destroys nothing, so only regular files (or new names) are checked.
+    destroys nothing, so only regular files (or new names) are checked. An output inside a
+    directory being read is fine: a later run leaves it out (mcfit knows its own files).
     """
     outputs = [(option, path) for option, path in outputs if is_regular_or_new(path)]
     seen = {}
@@ -494,13 +528,6 @@ def _refuse_outputs_that_clash(outputs, arguments, sources):
                     and os.path.samefile(path, source):
                 raise UsageError(f"{option} {path} is one of the input records; choose "
                                  "another output file, inputs are never overwritten.")
-        folder = os.path.realpath(os.path.dirname(os.path.abspath(path)))
-        for argument in arguments:
-            if argument != "-" and os.path.isdir(argument) \
-                    and os.path.realpath(argument) == folder:
-                raise UsageError(f"{option} {path} is inside {argument}, a directory being "
-                                 "read: a later run would read it as a record. Write it "
-                                 "to another directory.")
 
 
 def _write_results(results, sources, output_format, output, bootstrap=False,
@@ -515,7 +542,7 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
     target = Output(output)
     points = _TurningPointsOutput(turning_points_out)
     failures = done = written = 0
-    show_progress = total > 1 and sys.stderr.isatty()
+    show_progress = total > 1 and _is_terminal(sys.stderr)
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
                 if show_progress else None)
     try:
@@ -551,6 +578,14 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
     target.commit()
     points.commit()
     return failures
+
+
+def _is_terminal(stream) -> bool:
+    """Whether ``stream`` is a terminal; False for a closed or missing stream."""
+    try:
+        return stream is not None and stream.isatty()
+    except (AttributeError, OSError, ValueError):
+        return False
 
 
 def _write_result(result, target, points, output_format, written):
@@ -695,4 +730,62 @@ def main(argv=None):
         warnings.simplefilter("ignore")
         os.environ["PYTHONWARNINGS"] = "ignore"  # worker processes that start afresh
     signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    _hold_closed_streams()
+    _messages_never_fail()
     cli.main(args=argv, prog_name="mcfit")
+
+
+def _hold_closed_streams():
+    """Put /dev/null on a standard descriptor (0, 1, 2) the process was started without.
+
+    Else the next file opened takes its number, and whatever writes to "stderr" (a library
+    in a worker) writes into the results. ``sys.stdin`` and ``sys.stdout`` stay None, so
+    that reading stdin or writing results to stdout says that it is closed.
+    """
+    for descriptor in (0, 1, 2):
+        try:
+            os.fstat(descriptor)
+        except OSError:
+            devnull = os.open(os.devnull, os.O_RDWR)
+            if devnull != descriptor:
+                os.dup2(devnull, descriptor)
+                os.close(devnull)
+
+
+class _MessageWriter(io.RawIOBase):
+    """The descriptor of stderr, dropping what it cannot take (a full disk, a closed
+    pipe) instead of raising: messages are secondary to results."""
+
+    def __init__(self, descriptor: int):
+        super().__init__()
+        self.descriptor = descriptor
+
+    def writable(self):
+        return True
+
+    def fileno(self):
+        return self.descriptor
+
+    def isatty(self):
+        return os.isatty(self.descriptor)
+
+    def write(self, data):
+        try:
+            return os.write(self.descriptor, data)
+        except OSError:
+            return len(data)
+
+
+def _messages_never_fail():
+    """Make ``sys.stderr`` a stream whose writes never fail (see :class:`_MessageWriter`);
+    a stderr that is not descriptor 2 (a test's capture) is left alone."""
+    stream = sys.stderr
+    try:
+        if stream is not None and stream.fileno() != 2:
+            return
+    except (AttributeError, OSError, ValueError):
+        return
+    encoding = getattr(stream, "encoding", None) or "utf-8"
+    sys.stderr = io.TextIOWrapper(io.BufferedWriter(_MessageWriter(2)), encoding=encoding,
+                                  errors="backslashreplace", line_buffering=True,
+                                  write_through=True)

@@ -197,7 +197,7 @@ def _failed(argument, error):
     if kind == "KilledWorker":
         message = (f"every Dask worker that tried to fit {name} died "
                    f"({error.allowed_failures + 1} tried; KilledWorker); fit it alone with "
-                   "--jobs 1 to see why, or give the workers more memory.")
+                   "`jobs=1` to see why, or give the workers more memory.")
     elif isinstance(error, CancelledError):  # the scheduler lost, or the client closed
         message = (f"the Dask cluster dropped the fit of {name} (cancelled, reason: "
                    f"{getattr(error, 'reason', 'unknown')}); check that the scheduler is "

@@ -15,9 +15,27 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mcfit.errors import ClosedOutputError, OutputError
+from mcfit.errors import ClosedOutputError, OutputError, escape_controls
 
-__all__ = ["temporary_beside", "replace_atomically", "is_regular_or_new", "Output"]
+__all__ = ["temporary_beside", "replace_atomically", "is_regular_or_new", "Output",
+           "display_name", "describe_os_error"]
+
+# The escapes a reader knows from Python's own strings; other controls are shown \xNN.
+_NAMED_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}
+
+
+def display_name(path) -> str:
+    """A file name as it can be shown and written in any output: the bytes of a name that
+    is not UTF-8 as ``\\xe9``, a newline as ``\\n``, other control characters escaped.
+
+    A name given on the command line keeps its undecodable bytes as lone surrogates
+    (``os.fsdecode``); no text encoding can write those, so a result names such a file
+    escaped. ``"-"`` stays as it is.
+    """
+    text = os.fsencode(os.fspath(path)).decode("utf-8", "backslashreplace")
+    for character, escape in _NAMED_ESCAPES.items():
+        text = text.replace(character, escape)
+    return escape_controls(text)
 
 
 def is_regular_or_new(path) -> bool:
@@ -38,10 +56,29 @@ def temporary_beside(path) -> str:
     A symbolic link is followed, so that the link is kept and its target replaced.
     """
     path = Path(os.path.realpath(path))
-    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
-                                         suffix=".tmp")
+    prefix = f".{path.name}."
+    if len(os.fsencode(prefix)) + _RANDOM_PART + len(".tmp") > _name_max(path.parent):
+        prefix = ".mcfit-"  # a long legal name must not become too long a temporary one
+    handle, temporary = tempfile.mkstemp(dir=path.parent, prefix=prefix, suffix=".tmp")
     os.close(handle)
     return temporary
+
+
+_RANDOM_PART = 8  # characters tempfile puts between the prefix and the suffix
+
+
+def _name_max(directory) -> int:
+    """The longest file name, in bytes, that ``directory``'s file system takes."""
+    try:
+        return os.pathconf(directory, "PC_NAME_MAX")
+    except (OSError, ValueError, AttributeError):
+        return 255  # the usual limit; a missing directory fails in mkstemp with the reason
+
+
+def describe_os_error(error: OSError) -> str:
+    """The cause of a failed write and what to do about it, without the file's name:
+    ``No such file or directory; check that the directory exists and is writable``."""
+    return f"{error.strerror or error}; {_ADVICE.get(error.errno, 'write elsewhere')}"
 
 
 def replace_atomically(temporary, path) -> None:
@@ -81,6 +118,7 @@ _ADVICE = {
     errno.EIO: "the device reported an error; check it, or write elsewhere",
     errno.ENOENT: "check that the directory exists and is writable",
     errno.ENOTDIR: "check that the directory exists and is writable",
+    errno.EBADF: "open it, or write to a file instead",
 }
 
 
@@ -105,6 +143,8 @@ class Output:
         self._existed = path != "-" and os.path.exists(path)
         try:
             if path == "-":
+                if sys.stdout is None:  # started with stdout closed (>&-)
+                    raise OSError(errno.EBADF, "it is closed")
                 self.stream = sys.stdout
             elif not is_regular_or_new(path):
                 self.stream = open(path, "w", newline="")
@@ -171,11 +211,9 @@ class Output:
     def _error(self, error: OSError) -> OutputError:
         if error.errno == errno.EPIPE:
             return ClosedOutputError(f"the reader of {self.name} has gone away")
-        cause = error.strerror or str(error)
-        advice = _ADVICE.get(error.errno, "write elsewhere")
         kept = (f"; {self.path} was left as it was"
                 if self._existed and self.temporary is not None else "")
-        return OutputError(f"cannot write {self.name}: {cause}; {advice}{kept}.")
+        return OutputError(f"cannot write {self.name}: {describe_os_error(error)}{kept}.")
 
 
 def _may_write(path) -> bool:

@@ -17,8 +17,8 @@ import re
 from mcfit.errors import UsageError
 
 __all__ = ["KINDS", "DOMAINS", "CRITERIA", "FIT_METHODS", "SIMULATE_METHODS", "FORMATS",
-           "BENCH_SECTIONS", "PANELS", "DEFAULT_PANELS",
-           "PLOT_SUFFIXES", "FLAGS", "for_command_line", "parse_model",
+           "BENCH_SECTIONS", "PANELS", "DEFAULT_PANELS", "PLOT_SUFFIXES", "RATE_RANGE",
+           "SAMPLES_PER_CYCLE", "FLAGS", "for_command_line", "parse_model",
            "check_read_options", "check_fit_options", "check_plot_name",
            "parse_panels", "parse_figsize"]
 
@@ -34,6 +34,11 @@ BENCH_SECTIONS = ("integrators", "fitting", "verdicts", "methods", "throughput")
 PANELS = ("record", "amplitude", "q", "rate", "qamp", "backbone")
 DEFAULT_PANELS = ("record", "amplitude", "q", "rate")
 PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+# Sample rates in Hz a record can have: one sample in 11.6 days to a terahertz. Beyond
+# them the sample times underflow or overflow on the way (1/rate, n/rate).
+RATE_RANGE = (1e-6, 1e12)
+# Samples per cycle from which the turning points are found (mcfit.turning.common's).
+SAMPLES_PER_CYCLE = 8
 _TERMS = "abc"
 
 # Python keyword -> command-line flag.
@@ -44,7 +49,7 @@ FLAGS = {
     "bootstrap": "--bootstrap", "seed": "--seed", "method": "--method",
     "pendulum": "--pendulum", "degrees": "--degrees", "start": "--start", "end": "--end",
     "unit": "--unit", "title": "--title", "panels": "--panels", "figsize": "--figsize",
-    "dpi": "--dpi",
+    "dpi": "--dpi", "jobs": "--jobs",
 }
 _MARKED = re.compile(r"`([a-z_]+)(?:=([^`\s]*))?`")
 
@@ -111,6 +116,10 @@ def _check_rate(rate):
     if not (math.isfinite(rate) and rate > 0):
         raise UsageError(f"`rate` must be a positive number of samples per second, not "
                          f"{rate:g}.", option="rate")
+    low, high = RATE_RANGE
+    if not low <= rate <= high:
+        raise UsageError(f"`rate={rate:g}` is not a sample rate a record has; give the "
+                         f"samples per second, from {low:g} to {high:g}.", option="rate")
 
 
 def check_fit_options(*, criterion="aicc", model=None, bootstrap=0, method="auto",
@@ -128,6 +137,10 @@ def check_fit_options(*, criterion="aicc", model=None, bootstrap=0, method="auto
                          "fitted to the turning points.", option="method")
     if pendulum and model == "power":
         raise UsageError("`model=power` is not available with `pendulum`.", option="model")
+    for name, value in (("start", start), ("end", end)):
+        if value is not None and not math.isfinite(value):
+            raise UsageError(f"`{name}` must be a finite time (or cycle number), not "
+                             f"{value}.", option=name)
     if start is not None and end is not None and not start < end:
         raise UsageError(f"`start={start:g}` must come before `end={end:g}`.",
                          option="start")
