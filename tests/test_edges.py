@@ -77,3 +77,22 @@ def test_a_beat_of_two_close_modes_is_named_not_absorbed():
     x = sum(np.exp(-rate * t) * np.cos(2 * math.pi * f * t) for f in (1.0, 1.02))
     analysis = analyse_record(_noisy(t, x, 1e-3, 1))
     assert any("beating of two modes" in w for w in analysis.warnings), analysis.warnings
+
+
+def test_a_near_tie_is_cannot_tell_not_a_confident_wrong_regime():
+    """A viscous decay falling 10 % over 10 cycles, noise 0.5 % of the amplitude: the
+    single-term models fit alike, so the record cannot tell them apart (fluid or Coulomb
+    came out resolved in 3 of 20 records before). 12 seeds."""
+    beta = -math.log(0.9) / 10
+    t = np.arange(0.0, 10.0, 0.01)
+    x = np.exp(-beta * t) * np.cos(math.sqrt(4 * math.pi**2 - beta**2) * t)
+    verdicts = {(f.model, f.resolved) for f in (
+        analyse_record(_noisy(t, x, 0.005, seed)).fit for seed in range(12))}
+    assert verdicts == {("b", False)}
+
+
+def test_the_tie_needs_the_evidence_of_a_term_test():
+    from scipy import stats
+
+    from mcfit.fit.selection import LRT_ALPHA, TIE_DELTA
+    assert TIE_DELTA == pytest.approx(stats.chi2.isf(LRT_ALPHA, 1), abs=0.01)
