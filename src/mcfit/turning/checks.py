@@ -128,7 +128,7 @@ def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
     the decay undisturbed after it, starts the free decay ("before release"); any other
     rise ends it where the amplitude first reaches its dip ("after the decay"). Raises
     :class:`RecordError` only for an oscillation that grows as a whole."""
-    release, notes, warnings = float("nan"), [], []
+    release, notes, ending, beat = float("nan"), [], None, False
     index = np.flatnonzero(reasons == "")
     _check_growth(centres, y, sigma_y, index, source)
     while index.size >= MIN_TURNING_POINTS:
@@ -150,20 +150,23 @@ def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
             end = _end_of_decay(smooth, dip, noise, sigma_y[index])
             reasons[index[end]:] = np.where(reasons[index[end]:] == "", "after the decay",
                                             reasons[index[end]:])
-            said = (f"the amplitude falls to {smooth[dip]:.3g} at t = "
-                    f"{centres[index[dip]]:.6g} and rises again to {smooth[k]:.3g} at "
-                    f"t = {centres[index[k]]:.6g}")
-            left_out = (f"the {index.size - end} turning points from t = "
-                        f"{centres[index[end]]:.6g} are left out and the decay before them "
-                        "is fitted")
-            if smooth[dip] <= 3 * max(noise, floor):
-                notes.append(f"the decay ends in the noise or stops: {said} (noise, an "
-                             f"offset where the motion stopped, or a disturbance); {left_out}")
-            else:
-                warnings.append(f"{said}: beating of two modes, or a disturbance; "
-                                f"{left_out}. Excite one mode only, or check the record")
+            beat = beat or smooth[dip] > 3 * max(noise, floor)
+            # A later pass cuts earlier: its words replace the earlier ones.
+            ending = (f"the amplitude falls to {smooth[dip]:.3g} at t = "
+                      f"{centres[index[dip]]:.6g} and rises again to {smooth[k]:.3g} at "
+                      f"t = {centres[index[k]]:.6g}", float(centres[index[end]]))
         index = np.flatnonzero(reasons == "")
-    return release, notes, warnings
+    if ending is None:
+        return release, notes, []
+    said, start = ending
+    left_out = (f"the {np.count_nonzero(reasons == 'after the decay')} turning points from "
+                f"t = {start:.6g} are left out and the decay before them is fitted")
+    if beat:
+        return release, notes, [f"{said}: beating of two modes, or a disturbance; {left_out}. "
+                                "Excite one mode only, or check the record"]
+    return release, notes + [f"the decay ends in the noise or stops: {said} (noise, an "
+                             f"offset where the motion stopped, or a disturbance); {left_out}"
+                             ], []
 
 
 def _check_growth(centres, y, sigma_y, index, source):
