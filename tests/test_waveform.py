@@ -284,3 +284,18 @@ def test_a_few_swings_with_friction_are_fitted_by_the_waveform(quality, seed):
     assert abs(fit.values["c"] - c) < 3 * fit.stderr["c"]
     assert fit.reduced_chi_square < 1.2
     assert analysis.turning.period == pytest.approx(1.0, rel=1e-3)
+
+
+def test_a_waveform_fit_names_residual_structure_below_the_misfit_limit():
+    """A viscous decay at Q = 3 with a slow disturbance of the noise's size (0.37 Hz,
+    1e-3): the reduced chi-square stays under the misfit limit, but the residuals of
+    neighbouring samples are correlated, and the waveform fit says so as the turning-point
+    fit does."""
+    beta = OMEGA / 6
+    t = np.arange(0.0, 8.0, 0.01)
+    x = (np.exp(-beta * t) * np.cos(math.sqrt(OMEGA**2 - beta**2) * t)
+         + 1e-3 * np.sin(2 * np.pi * 0.37 * t)
+         + np.random.default_rng(1).normal(0.0, 1e-3, t.size))
+    fit = analyse_record(Record(source="disturbed", t=t, x=x)).fit
+    assert fit.method == "waveform" and fit.reduced_chi_square < 2
+    assert any(w.startswith("residuals are correlated") for w in fit.warnings)

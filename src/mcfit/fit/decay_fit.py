@@ -324,14 +324,14 @@ def tie_warning(selection, y_fit):
             f"damping fit it equally well; {said}"]
 
 
-def diagnose(terms, values, errors, weighted_residuals, converged, autocorrelation=True):
-    """Warnings a careful reader needs next to the numbers (the residuals' lag-one
-    autocorrelation only where neighbouring residuals should be independent)."""
+def diagnose(terms, values, errors, weighted_residuals, converged):
+    """Warnings a careful reader needs next to the numbers, the residuals' lag-one
+    autocorrelation among them (of amplitudes, or of samples in a waveform fit)."""
     warnings = []
     if not converged:
         warnings.append("the least-squares fit did not report convergence")
     n = weighted_residuals.size
-    r1 = _lag_one_autocorrelation(weighted_residuals) if autocorrelation else 0.0
+    r1 = _lag_one_autocorrelation(weighted_residuals)
     if r1 * math.sqrt(n) > 3.0:
         warnings.append(f"residuals are correlated (lag-1 autocorrelation {r1:.2f}): the "
                         "standard errors understate the uncertainty, or the model misses a "

@@ -314,8 +314,7 @@ def _reported(selection, candidates, waveform, start_fit, form):
         q_summary = uncertainty.summarise_q(q, q_stderr)
     errors_view = uncertainty.ParameterErrors(stderr, correlation, law_covariance)
     warnings = (selection.warnings() + tie_warning(selection, y_fit)
-                + diagnose(terms, values, errors_view, residual, success,
-                           autocorrelation=False))
+                + diagnose(terms, values, errors_view, residual, success))
     return replace(
         fit, status="ok" if success else "error",
         message=None if success else "the waveform fit did not converge",
