@@ -359,11 +359,13 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     try:
         record = crop_record(record, start, end)
         turning = turning_points_of(record)
-    except TooFewTurningPoints as error:
-        if not (_waveform_fit_possible(record, pendulum, method) and bootstrap == 0):
-            return failed_analysis(source, str(error), record=record)
-        return _few_swings_analysis(record, error, criterion=criterion, model=model)
     except McfitError as error:
+        few = (isinstance(error, TooFewTurningPoints) and bootstrap == 0
+               and _waveform_fit_possible(record, pendulum, method))
+        analysis = _few_swings_analysis(record, criterion=criterion, model=model) if few \
+            else None
+        if analysis is not None:
+            return analysis
         message = str(error)
         if (start, end) != (None, None) and not isinstance(error, UsageError):
             message += (f" This is in the window from {_bound(start, 'the start', record)} to "
@@ -393,10 +395,10 @@ def _waveform_fit_possible(record, pendulum, method):
             and method != "turning-points")
 
 
-def _few_swings_analysis(record, error, *, criterion, model):
+def _few_swings_analysis(record, *, criterion, model):
     """The waveform fit of a record with too few turning points for the averaged law,
-    started from a damped cosine (:mod:`mcfit.fit.few_swings`); ``error`` (the missing
-    turning points) where even that cannot be fitted."""
+    started from a damped cosine (:mod:`mcfit.fit.few_swings`), or None where even that
+    cannot be fitted."""
     from mcfit.fit.few_swings import few_swings_start
 
     try:
@@ -404,7 +406,7 @@ def _few_swings_analysis(record, error, *, criterion, model):
         waveform = fit_both_forms(record.t, record.x, turning, start, criterion=criterion,
                                   forced=model)
     except McfitError:
-        return failed_analysis(record.source, str(error), record=record)
+        return None
     fit = replace(waveform, method_reason=f"only {turning.count} turning points stand above "
                   "the noise, too few for the averaged law: fitted by the equation of motion")
     if not describes_waveform(fit):

@@ -63,18 +63,27 @@ def _held_crests(centres, held, period):
 
 def _held_until(t, x, period, noise):
     """Time at which a record that starts still (only noise about a level, for a
-    half-period at least) starts to move, or None."""
+    half-period at least) starts to move, or None. A brief disturbance while it is held
+    (a knock, a hand) does not end the stillness: the last still half-period before the
+    largest swing does."""
     if not noise > 0:
         return None
-    start = stop = 0
-    while True:  # half-period windows, while they are still
-        end = int(np.searchsorted(t, t[stop] + 0.5 * period))
-        if end >= t.size or end - stop < 3 or np.std(x[stop:end]) > _HELD_NOISE * noise:
-            break
-        start, stop = stop, end
-    if stop == 0:
+    largest = int(np.argmax(np.abs(x - _median(x))))
+    # Half-periods that end before the largest swing, and the spread of each.
+    edges = np.unique(np.searchsorted(t, np.arange(t[0], t[largest], 0.5 * period)))
+    if edges.size < 2:
         return None
-    level = _median(x[:stop])
+    counts = np.diff(edges)
+    middle = x[edges[0]:edges[-1]] - x[edges[0]]  # shifted: no cancellation in the sums
+    sums = np.add.reduceat(middle, edges[:-1] - edges[0])
+    squares = np.add.reduceat(middle * middle, edges[:-1] - edges[0])
+    spread = np.sqrt(np.maximum(squares / counts - (sums / counts) ** 2, 0.0))
+    still = (counts >= 3) & (spread <= _HELD_NOISE * noise)
+    if not still[0]:
+        return None
+    last = int(np.flatnonzero(still)[-1])
+    start, stop = edges[last], edges[last + 1]
+    level = _median(x[start:stop])
     away = np.abs(x[start:] - level) > _DEPARTURE_Z * noise
     moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one noise spike
     return float(t[start + moving[0]]) if moving.size else None
