@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +12,8 @@ import pytest
 from mcfit.decay import amplitude
 from mcfit.errors import RecordError, UsageError
 from mcfit.turning import find_turning_points, turning_points_from_table
+from mcfit.turning import common
+from mcfit.turning.common import _running_median
 from mcfit.turning.windows import _window_sums
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
@@ -421,3 +424,48 @@ def test_real_spring_mass(run):
     assert points.count > 300
     assert points.period == pytest.approx(0.7435, rel=0.01)
     assert points.equilibrium == pytest.approx(0.417, abs=0.002)
+
+
+def _median_of_each_window(values, width):
+    """Reference running median: np.median of each window, the ends held level."""
+    half = width // 2
+    padded = np.concatenate([np.full(half, values[0]), values, np.full(half, values[-1])])
+    return np.array([np.median(padded[i:i + 2 * half + 1]) for i in range(values.size)])
+
+
+@pytest.mark.parametrize("width", [3, 6, 64, 65, 66, 201, 999])
+def test_running_median_is_the_median_of_each_window(width, rng):
+    # Rounded: ties as well. Widths on both sides of the wide-window switch.
+    values = np.round(rng.normal(size=1000), 1)
+    np.testing.assert_array_equal(_running_median(values, width),
+                                  _median_of_each_window(values, width))
+
+
+def test_a_wide_running_median_takes_memory_in_proportion_to_the_values(rng):
+    # One partition of all the windows would hold 20,000 x 2,001 values (320 MB).
+    values = rng.normal(size=20_000)
+    tracemalloc.start()
+    try:
+        smooth = _running_median(values, 2001)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 10 * values.nbytes
+    np.testing.assert_array_equal(smooth[::997], _median_of_each_window(values, 2001)[::997])
+
+
+def test_the_floor_of_a_long_record_is_found_as_by_one_partition(monkeypatch, rng):
+    # 3,000 crests: the floor check's running median spans 99 of them. The envelope
+    # meets 1.5 times the floor at 663 s and the floor itself at 730 s.
+    t = np.arange(0, 1500, 0.05)
+    x = (np.exp(-t * np.log(300) / 900) * np.cos(2 * np.pi * t)
+         + 0.01 * np.cos(2 * np.pi * 1.37 * t) + rng.normal(0, 1e-3, t.size))
+    points = find_turning_points(t, x)
+    assert 650 < points.noise_floor_time < 850
+    assert points.noise_floor == pytest.approx(0.01, rel=0.3)
+    monkeypatch.setattr(common, "_WIDE_MEDIAN", 10**9)  # every window by the partition
+    by_partition = find_turning_points(t, x)
+    assert by_partition.noise_floor_time == points.noise_floor_time
+    for name in ("t", "y", "sigma", "used"):
+        np.testing.assert_array_equal(getattr(points, name), getattr(by_partition, name))
+    assert points.excluded_reason == by_partition.excluded_reason
