@@ -12,7 +12,7 @@ import pytest
 from mcfit.decay import amplitude
 from mcfit.errors import RecordError, UsageError
 from mcfit.turning import find_turning_points, turning_points_from_table
-from mcfit.turning import common
+from mcfit.turning import common, spectrum
 from mcfit.turning.common import _running_median
 from mcfit.turning.windows import _window_sums
 
@@ -469,3 +469,69 @@ def test_the_floor_of_a_long_record_is_found_as_by_one_partition(monkeypatch, rn
     for name in ("t", "y", "sigma", "used"):
         np.testing.assert_array_equal(getattr(points, name), getattr(by_partition, name))
     assert points.excluded_reason == by_partition.excluded_reason
+
+
+def _rfft_lengths(monkeypatch):
+    """The lengths np.fft.rfft is called at, from now on in the test."""
+    lengths = []
+    rfft = np.fft.rfft
+
+    def counted(a, n=None, *args, **kwargs):
+        lengths.append(np.shape(a)[-1] if n is None else n)
+        return rfft(a, n, *args, **kwargs)
+
+    monkeypatch.setattr(np.fft, "rfft", counted)
+    return lengths
+
+
+def _long_decay(samples, rng, hum=0.0):
+    """25 samples a cycle of period 1, decaying to exp(-2), noise 1e-3; and a hum of
+    amplitude ``hum`` at 0.13 cycles per time unit."""
+    t = np.arange(samples) / 25.0
+    x = (np.exp(-2.0 * t / t[-1]) * np.cos(2 * np.pi * t) + hum * np.cos(0.26 * np.pi * t)
+         + rng.normal(0.0, 1e-3, samples))
+    return t, x
+
+
+def _is_5_smooth(n):
+    for p in (2, 3, 5):
+        while n % p == 0:
+            n //= p
+    return n == 1
+
+
+@pytest.mark.parametrize("samples", [100_003, pytest.param(1_000_001, marks=pytest.mark.slow)])
+def test_a_long_spectrum_is_padded_to_a_fast_length(samples, monkeypatch, rng):
+    t, x = _long_decay(samples, rng)
+    lengths = _rfft_lengths(monkeypatch)
+    points = find_turning_points(t, x)
+    assert samples < lengths[0] < 1.05 * samples and _is_5_smooth(lengths[0])
+    assert points.period == pytest.approx(1.0, rel=1e-6)
+    assert points.noise_sigma == pytest.approx(1e-3, rel=0.05)
+
+
+def test_a_short_spectrum_keeps_its_own_length(monkeypatch, rng):
+    t, x = _long_decay(10_007, rng)  # prime: its results stay as they were
+    lengths = _rfft_lengths(monkeypatch)
+    find_turning_points(t, x)
+    assert lengths[0] == 10_007
+
+
+def test_the_padded_periodogram_gives_the_period_and_noise_of_the_unpadded(monkeypatch, rng):
+    t, x = _long_decay(100_003, rng)
+    steps = np.diff(t)
+    padded = spectrum._spectrum(t, x, 0.04, steps)
+    monkeypatch.setattr(spectrum, "_PADDED_SAMPLES", 10**9)
+    unpadded = spectrum._spectrum(t, x, 0.04, steps)
+    assert padded[2][5] > 1.0 and unpadded[2][5] == 1.0
+    assert padded[0] == pytest.approx(unpadded[0], rel=1e-5)  # 0.04 of a bin
+    assert padded[1] == pytest.approx(unpadded[1], rel=0.02)
+
+
+def test_a_hum_is_removed_from_a_padded_spectrum(rng):
+    t, x = _long_decay(100_003, rng, hum=0.02)
+    points = find_turning_points(t, x)
+    notes = [n for n in points.notes if "hum" in n]
+    assert len(notes) == 1 and "removed" in notes[0]
+    assert "frequency 0.13 " in notes[0] and "amplitude 0.02" in notes[0]
+    assert points.period == pytest.approx(1.0, rel=1e-6)
