@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import tracemalloc
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -535,3 +536,32 @@ def test_a_hum_is_removed_from_a_padded_spectrum(rng):
     assert len(notes) == 1 and "removed" in notes[0]
     assert "frequency 0.13 " in notes[0] and "amplitude 0.02" in notes[0]
     assert points.period == pytest.approx(1.0, rel=1e-6)
+
+
+def _decay_into_a_floor(rng):
+    """A decay sinking into a steady vibration at 1.37 times its frequency."""
+    t = np.arange(0, 60, 0.02)
+    x = (amplitude(t, 1.0, 0.0, 0.12, 0.0) * np.cos(2 * np.pi * t)
+         + 0.01 * np.cos(2 * np.pi * 1.37 * t) + rng.normal(0, 1e-3, t.size))
+    return t, x
+
+
+@pytest.mark.parametrize("scale", [1e-155, 1e-160, 1e-164, 1e-300])
+def test_a_tiny_amplitude_raises_no_numpy_warning(scale, rng):
+    # Squares of such amplitudes underflow: the phase weights were 0/0, polyfit's column
+    # norms 0, and the hum's Gauss-Newton step 0/0, each with a RuntimeWarning.
+    records = (waveform(20, noise=1e-3, rng=rng),
+               _decay_into_a_floor(np.random.default_rng(20240611)))  # with a steady line
+    for t, x in records:
+        reference = find_turning_points(t, x)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            try:
+                points = find_turning_points(t, scale * x)
+            except RecordError:  # the spectrum's power underflows: no period found
+                assert scale < 1e-160
+                continue
+        if scale >= 1e-155:  # the same crests, in proportion
+            np.testing.assert_allclose(points.t, reference.t, rtol=1e-9)
+            np.testing.assert_allclose(points.y / scale, reference.y, rtol=1e-9)
+            assert points.period_drift == pytest.approx(reference.period_drift, rel=1e-9)

@@ -223,8 +223,11 @@ def _refined(t, x, f, span):
             return np.column_stack([s, s * (tau / length)[:, None]])
         solution = np.linalg.lstsq(*_normal_equations(t, x, columns), rcond=None)[0]
         a, b, c, d = solution[2:]
+        power = a * a + b * b
+        if not power > 0:  # no line, or one so faint that its square underflows
+            break
         # A*cos(w+dw)tau + B*sin(w+dw)tau ~ ... + tau*dw*(B*cos - A*sin)
-        step = (c * b - d * a) / (a * a + b * b) / (2.0 * np.pi * length)
+        step = (c * b - d * a) / power / (2.0 * np.pi * length)
         if not np.isfinite(step) or abs(step) > 0.5 / span:
             break
         f += step

@@ -3,6 +3,8 @@ amplitudes as projections onto it."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from mcfit.turning.common import _amplitude_sigma, _running_median
@@ -233,7 +235,13 @@ def _phase_weights(magnitude, sigma):
     is sigma**2/y**2 * (1 + 3*sigma**2/y**2) to second order, and y**2 is estimated without
     the Rician bias as magnitude**2 - 2*sigma**2 (the weight is 0 where that is <= 0).
     """
-    floor = (1e-9 * np.max(magnitude, initial=0.0)) ** 2 + 1e-300  # a noise-free record
+    # In units of the power of two at the largest magnitude (an exact scaling): the squares
+    # of amplitudes near 1e-300 would underflow, and the weights be 0/0.
+    largest = float(np.max(magnitude, initial=0.0))
+    if largest > 0 and np.isfinite(largest):
+        unit = math.ldexp(1.0, math.frexp(largest)[1])
+        magnitude, sigma, largest = magnitude / unit, sigma / unit, largest / unit
+    floor = (1e-9 * largest) ** 2 + 1e-300  # a noise-free record
     variance = np.maximum(sigma**2, floor)
     square = np.maximum(magnitude**2 - 2.0 * variance, 0.0)
     return square**2 / (variance * (square + 3.0 * variance))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from mcfit.turning.common import HALF_CYCLE_SPACING, _median
@@ -41,7 +43,10 @@ def _period_and_drift(centres, signs, y, used, period, weights=None):
     spread = np.ptp(amplitude)
     if spread <= 0:
         return result, result_sigma, float("nan"), float("nan")
-    centred = amplitude - np.mean(amplitude)  # better conditioned; the slope is the same
+    # Centred (better conditioned; the slope is the same), in units of the power of two
+    # at the spread (an exact scaling): polyfit squares them, which underflows near 1e-160.
+    unit = math.ldexp(1.0, math.frexp(spread)[1])
+    centred = (amplitude - np.mean(amplitude)) / unit
     fit, covariance = np.polyfit(centred, full, 1, cov="unscaled")
     residual = full - np.polyval(fit, centred)
     dof = max(full.size - 2, 1)
@@ -50,8 +55,8 @@ def _period_and_drift(centres, signs, y, used, period, weights=None):
     if not (np.isfinite(variance) and variance >= 0):  # amplitudes too alike to tell
         return result, result_sigma, float("nan"), float("nan")
     slope_sigma = float(np.sqrt(variance))
-    drift = float(fit[0] * spread / result)
-    drift_sigma = float(slope_sigma * spread / result)
+    drift = float(fit[0] * (spread / unit) / result)
+    drift_sigma = float(slope_sigma * (spread / unit) / result)
     return result, result_sigma, drift, drift_sigma
 
 
