@@ -13,7 +13,7 @@ import pytest
 from mcfit.decay import amplitude
 from mcfit.errors import RecordError, UsageError
 from mcfit.turning import find_turning_points, turning_points_from_table
-from mcfit.turning import common, spectrum
+from mcfit.turning import common, crests, equilibrium, refine, spectrum, windows
 from mcfit.turning.common import _running_median
 from mcfit.turning.windows import _window_sums
 
@@ -565,3 +565,37 @@ def test_a_tiny_amplitude_raises_no_numpy_warning(scale, rng):
             np.testing.assert_allclose(points.t, reference.t, rtol=1e-9)
             np.testing.assert_allclose(points.y / scale, reference.y, rtol=1e-9)
             assert points.period_drift == pytest.approx(reference.period_drift, rel=1e-9)
+
+
+def test_turning_points_do_not_depend_on_the_blocks_they_are_taken_in(monkeypatch, rng):
+    # 8,000 samples and 800 crests in blocks of 1,000 samples and 64 crests: every seam
+    # between blocks (periods, half-cycle runs, windows, crest fits, running medians).
+    t, x = waveform(10, cycles=400, noise=1e-3, rng=rng)
+    whole = find_turning_points(t, x)
+    for module in (common, equilibrium, refine, windows, crests):
+        for name, size in (("_BLOCK_SAMPLES", 1000), ("_CREST_BLOCK", 64)):
+            if hasattr(module, name):
+                monkeypatch.setattr(module, name, size)
+    blocks = find_turning_points(t, x)
+    np.testing.assert_allclose(blocks.t, whole.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(blocks.y, whole.y, rtol=1e-12)
+    np.testing.assert_allclose(blocks.sigma, whole.sigma, rtol=1e-12)
+    assert blocks.excluded_reason == whole.excluded_reason
+    assert blocks.period == pytest.approx(whole.period, rel=1e-14)
+
+
+def test_the_crest_smoother_takes_memory_in_proportion_to_the_crests(rng):
+    # The moment matrices of every crest at once took about 1 kB a crest.
+    count = 400_000
+    numbers = np.arange(count)
+    times = 0.5 * numbers + rng.normal(0.0, 1e-3, count)
+    weights = np.full(count, 1e4)
+    tracemalloc.start()
+    try:
+        smooth, _, variance, _ = crests._smooth_crest_times(numbers, times, weights, count)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 300 * count
+    np.testing.assert_allclose(smooth, 0.5 * numbers, atol=5e-3)  # 5 sigma of a time
+    assert np.all(variance < 1e-4)  # no more than one crest's own (weight 1e4)

@@ -76,11 +76,12 @@ def _period_by_crest_times(times, signs, used, period, weights, fallback_sigma):
     number = np.round((t - t[0]) / (0.5 * period))
     design = np.column_stack([np.ones_like(t), 0.5 * number, 0.5 * signs[keep]])
     root = np.sqrt(weights[keep] / np.max(weights[keep]))
-    solution, _, rank, _ = np.linalg.lstsq(design * root[:, None], t * root, rcond=None)
+    weighted = design * root[:, None]
+    solution, _, rank, _ = np.linalg.lstsq(weighted, t * root, rcond=None)
     dof = t.size - 3
     if rank < 3 or dof <= 0 or np.unique(number).size != number.size:
         return period, fallback_sigma
     residual = (t - design @ solution) * root
-    covariance = np.linalg.pinv((design * root[:, None]).T @ (design * root[:, None]))
+    covariance = np.linalg.pinv(weighted.T @ weighted)
     variance = covariance[1, 1] * float(residual @ residual) / dof
     return float(solution[1]), float(np.sqrt(max(variance, 0.0)))
