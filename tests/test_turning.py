@@ -599,3 +599,15 @@ def test_the_crest_smoother_takes_memory_in_proportion_to_the_crests(rng):
     assert peak < 300 * count
     np.testing.assert_allclose(smooth, 0.5 * numbers, atol=5e-3)  # 5 sigma of a time
     assert np.all(variance < 1e-4)  # no more than one crest's own (weight 1e4)
+
+
+def test_a_steady_line_is_found_in_a_periodogram_without_its_padding(rng):
+    # mcfit.hum.find_steady_line is public: a periodogram of five items (unpadded) works.
+    from mcfit.hum import find_steady_line
+
+    t, x = _long_decay(50_000, rng, hum=0.02)
+    periodogram = spectrum._spectrum(t, x, 0.04, np.diff(t))[2]
+    assert periodogram[5] == 1.0
+    line = find_steady_line(t, x, periodogram[:5], 1e-3)
+    assert line == find_steady_line(t, x, periodogram, 1e-3)
+    assert line.removed and line.frequency == pytest.approx(0.13, rel=1e-4)

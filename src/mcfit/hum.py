@@ -61,11 +61,13 @@ def find_steady_line(t, x, periodogram, noise):
     """A :class:`SteadyLine` in the record, or None.
 
     ``periodogram``: (frequencies, power, window sum, window sum of squares, bin of the
-    strongest line, grid bins per bin of the stretch's length: more than 1 when
-    zero-padded) of the record's Hann periodogram over a stretch from ``t[0]``;
+    strongest line, and optionally the grid bins per bin of the stretch's length: more
+    than 1 when zero-padded, 1 if left out) of the record's Hann periodogram over a
+    stretch from ``t[0]``;
     ``noise``: the sample noise sigma.
     """
-    frequencies, power, window_sum, energy, k1, oversampling = periodogram
+    frequencies, power, window_sum, energy, k1, *padding = periodogram
+    oversampling = padding[0] if padding else 1.0
     f1 = peak_frequency(power, frequencies, k1)
     k2 = _strongest_apart(frequencies, power, f1, oversampling)
     if k2 is None:
