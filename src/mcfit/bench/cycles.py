@@ -33,7 +33,7 @@ import numpy as np
 
 from mcfit.bench.config import QUICK, BenchConfig
 from mcfit.bench.throughput import Target
-from mcfit.bench.timing import ONE_THREAD, ChildRun, child_environment, mcfit_command, run_child
+from mcfit.bench.timing import ONE_THREAD, child_environment, mcfit_command, run_child
 
 __all__ = ["CycleRow", "CycleCost", "QUICK_CYCLES", "FULL_CYCLES", "ringdown",
            "write_ringdown_csv", "run_cycles", "format_cycles", "main"]
@@ -74,8 +74,8 @@ class CycleRow:
 @dataclass(frozen=True)
 class CycleCost:
     """Everything the section measured: the rows, and the large file's run as (samples,
-    cycles, file MiB, :class:`ChildRun`, turning points used) or a string saying why it
-    was not run."""
+    cycles, file MiB, :class:`mcfit.bench.timing.ChildRun`, turning points used) or a
+    string saying why it was not run."""
 
     config: BenchConfig
     rows: tuple
