@@ -14,6 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from mcfit import bench, decay
+from mcfit.bench import cycles
 from mcfit.bench.throughput import CommandRate
 from mcfit.bench.timing import (ChildRun, bytecode_environment, child_environment,
                                 fastest_in_turn, run_child)
@@ -63,11 +64,12 @@ def _table(text, heading):
     return [row.split() for row in block[2:] if row.strip() and not row.strip().startswith("(")]
 
 
-def test_every_section_runs_and_writes_the_plots(tmp_path):
+def test_every_section_runs_and_writes_the_plots(tmp_path, monkeypatch):
+    monkeypatch.setattr(cycles, "QUICK_CYCLES", (100, 200))
     blocks = list(bench.run(TINY, plot_dir=tmp_path / "plots"))
     text = "\n".join(blocks)
     for heading in ("Integrators:", "Fitting:", "Verdicts and 95 %", "Methods against Q",
-                    "Throughput:", "rec/s",
+                    "Cycles:", "us/cycle", "Throughput:", "rec/s",
                     "mcfit --help", "peak resident memory"):
         assert heading in text
     for setting in ("dt = T/50", "dt = T/100", "rtol 1e-06", "closed form"):
@@ -238,3 +240,62 @@ def test_verdicts_fluid_scene_sits_its_bound_from_b_by_hand():
     design = np.column_stack([1 / growth, -(growth - 1) / b / growth**2, -t / growth])
     by_hand = noise * math.sqrt(np.linalg.inv(design.T @ design)[1, 1])
     assert _fluid_at(3, b, 100.0, noise) == pytest.approx(3 * by_hand, rel=1e-9)
+
+
+def _cycle_rows(text):
+    """The rows of the cycles section's table, as numbers (thousands separators gone)."""
+    rows = _table(text, "during one more call:")
+    return [[float(cell.replace(",", "")) for cell in row] for row in rows]
+
+
+def test_cycles_section_prints_the_cost_per_cycle(monkeypatch):
+    monkeypatch.setattr(cycles, "QUICK_CYCLES", (200, 2_000))
+    result = CliRunner().invoke(cli, ["bench", "--section", "cycles"])
+    assert result.exit_code == 0, result.output
+    out = result.stdout
+    assert "Cycles:" in out and "Throughput:" not in out
+    assert "cycles: turning points of 2000 cycles" in result.stderr
+    rows = _cycle_rows(out)
+    assert [row[:2] for row in rows] == [[200, 5_000], [2_000, 50_000]]
+    for cycle_count, samples, crests, ms, per_cycle, ratio, allocated, per_sample in rows:
+        assert 2 * cycle_count - 3 <= crests <= 2 * cycle_count  # every crest found
+        assert per_cycle == pytest.approx(1e3 * ms / cycle_count, rel=0.01, abs=0.01)
+        # MiB printed to 0.1 and bytes a sample to 1.
+        assert allocated > 0
+        assert ((allocated - 0.05) * 2**20 / samples - 0.5 <= per_sample
+                <= (allocated + 0.05) * 2**20 / samples + 0.5)
+    assert rows[1][5] == 1.0 and rows[0][5] == pytest.approx(rows[0][4] / rows[1][4], abs=0.01)
+    lines = [line for line in out.splitlines() if "   target " in line]
+    assert len(lines) == 4 and all(line.endswith("-") for line in lines)  # none measured
+    assert "run `mcfit bench --full --section cycles`" in out
+
+
+def test_cycles_section_runs_mcfit_on_a_ringdown_file(monkeypatch):
+    # --full's runs, small: 2,000 and 20,000 cycles, and a file of 10^4 samples.
+    monkeypatch.setattr(cycles, "FULL_CYCLES", (2_000, 20_000))
+    config = dataclasses.replace(TINY, big_samples=10_000)
+    text = cycles.format_cycles(cycles.run_cycles(config))
+    growth = next(line for line in text.splitlines() if "20,000 / 2,000 cycles" in line)
+    assert re.search(r"\d\.\d\dx   target <= 2x\s+(met|NOT MET)$", growth)
+    for label in ("CPU time", "peak memory / file size"):
+        line = next(line for line in text.splitlines() if label in line)
+        assert re.search(r"[\d.]+ ?(s|x)   target < [\d.]+ ?(s|x)\s+(met|NOT MET)$", line)
+    assert "10^4 samples, 10^3 cycles: CPU time" in text
+    assert "on 10,000 samples, 1,000 cycles" in text
+    assert re.search(r"peak resident memory \d+ MiB; 1,99\d turning points", text)
+
+
+def test_a_ringdown_decays_to_exp_minus_2_and_its_file_holds_it(tmp_path):
+    t, x = cycles.ringdown(300, samples_per_cycle=25, seed=1)
+    assert t.size == 7_500 and t[1] == pytest.approx(0.04)
+    first, last = (np.max(np.abs(x[part] - cycles.OFFSET)) for part in (slice(0, 25),
+                                                                          slice(-25, None)))
+    assert first == pytest.approx(1.0, abs=5e-3)
+    assert last == pytest.approx(math.exp(-2.0), abs=5e-3)
+    path = tmp_path / "ringdown.csv"
+    cycles.write_ringdown_csv(path, 300, samples_per_cycle=10, seed=1)
+    lines = path.read_text().splitlines()
+    assert lines[0] == "time (s),position (m),velocity" and len(lines) == 3_001
+    table = np.loadtxt(path, delimiter=",", skiprows=1)
+    np.testing.assert_allclose(table[:, 1], cycles.ringdown(300, 10, seed=1)[1], atol=6e-7)
+    assert 20 <= path.stat().st_size / 3_000 <= 32  # about 31 bytes a row at 10^7 rows

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import sys
+import tracemalloc
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -11,6 +13,8 @@ import pytest
 from mcfit.decay import amplitude
 from mcfit.errors import RecordError, UsageError
 from mcfit.turning import find_turning_points, turning_points_from_table
+from mcfit.turning import common, crests, equilibrium, refine, spectrum, windows
+from mcfit.turning.common import _running_median
 from mcfit.turning.windows import _window_sums
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
@@ -425,3 +429,189 @@ def test_real_spring_mass(run):
     assert points.count > 300
     assert points.period == pytest.approx(0.7435, rel=0.01)
     assert points.equilibrium == pytest.approx(0.417, abs=0.002)
+
+
+def _median_of_each_window(values, width):
+    """Reference running median: np.median of each window, the ends held level."""
+    half = width // 2
+    padded = np.concatenate([np.full(half, values[0]), values, np.full(half, values[-1])])
+    return np.array([np.median(padded[i:i + 2 * half + 1]) for i in range(values.size)])
+
+
+@pytest.mark.parametrize("width", [3, 6, 64, 65, 66, 201, 999])
+def test_running_median_is_the_median_of_each_window(width, rng):
+    # Rounded: ties as well. Widths on both sides of the wide-window switch.
+    values = np.round(rng.normal(size=1000), 1)
+    np.testing.assert_array_equal(_running_median(values, width),
+                                  _median_of_each_window(values, width))
+
+
+def test_a_wide_running_median_takes_memory_in_proportion_to_the_values(rng):
+    # One partition of all the windows would hold 20,000 x 2,001 values (320 MB).
+    values = rng.normal(size=20_000)
+    tracemalloc.start()
+    try:
+        smooth = _running_median(values, 2001)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 10 * values.nbytes
+    np.testing.assert_array_equal(smooth[::997], _median_of_each_window(values, 2001)[::997])
+
+
+def test_the_floor_of_a_long_record_is_found_as_by_one_partition(monkeypatch, rng):
+    # 3,000 crests: the floor check's running median spans 99 of them. The envelope
+    # meets 1.5 times the floor at 663 s and the floor itself at 730 s.
+    t = np.arange(0, 1500, 0.05)
+    x = (np.exp(-t * np.log(300) / 900) * np.cos(2 * np.pi * t)
+         + 0.01 * np.cos(2 * np.pi * 1.37 * t) + rng.normal(0, 1e-3, t.size))
+    points = find_turning_points(t, x)
+    assert 650 < points.noise_floor_time < 850
+    assert points.noise_floor == pytest.approx(0.01, rel=0.3)
+    monkeypatch.setattr(common, "_WIDE_MEDIAN", 10**9)  # every window by the partition
+    by_partition = find_turning_points(t, x)
+    assert by_partition.noise_floor_time == points.noise_floor_time
+    for name in ("t", "y", "sigma", "used"):
+        np.testing.assert_array_equal(getattr(points, name), getattr(by_partition, name))
+    assert points.excluded_reason == by_partition.excluded_reason
+
+
+def _rfft_lengths(monkeypatch):
+    """The lengths np.fft.rfft is called at, from now on in the test."""
+    lengths = []
+    rfft = np.fft.rfft
+
+    def counted(a, n=None, *args, **kwargs):
+        lengths.append(np.shape(a)[-1] if n is None else n)
+        return rfft(a, n, *args, **kwargs)
+
+    monkeypatch.setattr(np.fft, "rfft", counted)
+    return lengths
+
+
+def _long_decay(samples, rng, hum=0.0):
+    """25 samples a cycle of period 1, decaying to exp(-2), noise 1e-3; and a hum of
+    amplitude ``hum`` at 0.13 cycles per time unit."""
+    t = np.arange(samples) / 25.0
+    x = (np.exp(-2.0 * t / t[-1]) * np.cos(2 * np.pi * t) + hum * np.cos(0.26 * np.pi * t)
+         + rng.normal(0.0, 1e-3, samples))
+    return t, x
+
+
+def _is_5_smooth(n):
+    for p in (2, 3, 5):
+        while n % p == 0:
+            n //= p
+    return n == 1
+
+
+@pytest.mark.parametrize("samples", [100_003, pytest.param(1_000_001, marks=pytest.mark.slow)])
+def test_a_long_spectrum_is_padded_to_a_fast_length(samples, monkeypatch, rng):
+    t, x = _long_decay(samples, rng)
+    lengths = _rfft_lengths(monkeypatch)
+    points = find_turning_points(t, x)
+    assert samples < lengths[0] < 1.05 * samples and _is_5_smooth(lengths[0])
+    assert points.period == pytest.approx(1.0, rel=1e-6)
+    assert points.noise_sigma == pytest.approx(1e-3, rel=0.05)
+
+
+def test_a_short_spectrum_keeps_its_own_length(monkeypatch, rng):
+    t, x = _long_decay(10_007, rng)  # prime: its results stay as they were
+    lengths = _rfft_lengths(monkeypatch)
+    find_turning_points(t, x)
+    assert lengths[0] == 10_007
+
+
+def test_the_padded_periodogram_gives_the_period_and_noise_of_the_unpadded(monkeypatch, rng):
+    t, x = _long_decay(100_003, rng)
+    steps = np.diff(t)
+    padded = spectrum._spectrum(t, x, 0.04, steps)
+    monkeypatch.setattr(spectrum, "_PADDED_SAMPLES", 10**9)
+    unpadded = spectrum._spectrum(t, x, 0.04, steps)
+    assert padded[2][5] > 1.0 and unpadded[2][5] == 1.0
+    assert padded[0] == pytest.approx(unpadded[0], rel=1e-5)  # 0.04 of a bin
+    assert padded[1] == pytest.approx(unpadded[1], rel=0.02)
+
+
+def test_a_hum_is_removed_from_a_padded_spectrum(rng):
+    t, x = _long_decay(100_003, rng, hum=0.02)
+    points = find_turning_points(t, x)
+    notes = [n for n in points.notes if "hum" in n]
+    assert len(notes) == 1 and "removed" in notes[0]
+    assert "frequency 0.13 " in notes[0] and "amplitude 0.02" in notes[0]
+    assert points.period == pytest.approx(1.0, rel=1e-6)
+
+
+def _decay_into_a_floor(rng):
+    """A decay sinking into a steady vibration at 1.37 times its frequency."""
+    t = np.arange(0, 60, 0.02)
+    x = (amplitude(t, 1.0, 0.0, 0.12, 0.0) * np.cos(2 * np.pi * t)
+         + 0.01 * np.cos(2 * np.pi * 1.37 * t) + rng.normal(0, 1e-3, t.size))
+    return t, x
+
+
+@pytest.mark.parametrize("scale", [1e-155, 1e-160, 1e-164, 1e-300])
+def test_a_tiny_amplitude_raises_no_numpy_warning(scale, rng):
+    # Squares of such amplitudes underflow: the phase weights were 0/0, polyfit's column
+    # norms 0, and the hum's Gauss-Newton step 0/0, each with a RuntimeWarning.
+    records = (waveform(20, noise=1e-3, rng=rng),
+               _decay_into_a_floor(np.random.default_rng(20240611)))  # with a steady line
+    for t, x in records:
+        reference = find_turning_points(t, x)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            try:
+                points = find_turning_points(t, scale * x)
+            except RecordError:  # the spectrum's power underflows: no period found
+                assert scale < 1e-160
+                continue
+        if scale >= 1e-155:  # the same crests, in proportion
+            np.testing.assert_allclose(points.t, reference.t, rtol=1e-9)
+            np.testing.assert_allclose(points.y / scale, reference.y, rtol=1e-9)
+            assert points.period_drift == pytest.approx(reference.period_drift, rel=1e-9)
+
+
+def test_turning_points_do_not_depend_on_the_blocks_they_are_taken_in(monkeypatch, rng):
+    # 8,000 samples and 800 crests in blocks of 1,000 samples and 64 crests: every seam
+    # between blocks (periods, half-cycle runs, windows, crest fits, running medians).
+    t, x = waveform(10, cycles=400, noise=1e-3, rng=rng)
+    whole = find_turning_points(t, x)
+    for module in (common, equilibrium, refine, windows, crests):
+        for name, size in (("_BLOCK_SAMPLES", 1000), ("_CREST_BLOCK", 64)):
+            if hasattr(module, name):
+                monkeypatch.setattr(module, name, size)
+    blocks = find_turning_points(t, x)
+    np.testing.assert_allclose(blocks.t, whole.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(blocks.y, whole.y, rtol=1e-12)
+    np.testing.assert_allclose(blocks.sigma, whole.sigma, rtol=1e-12)
+    assert blocks.excluded_reason == whole.excluded_reason
+    assert blocks.period == pytest.approx(whole.period, rel=1e-14)
+
+
+def test_the_crest_smoother_takes_memory_in_proportion_to_the_crests(rng):
+    # The moment matrices of every crest at once took about 1 kB a crest.
+    count = 400_000
+    numbers = np.arange(count)
+    times = 0.5 * numbers + rng.normal(0.0, 1e-3, count)
+    weights = np.full(count, 1e4)
+    tracemalloc.start()
+    try:
+        smooth, _, variance, _ = crests._smooth_crest_times(numbers, times, weights, count)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 300 * count
+    np.testing.assert_allclose(smooth, 0.5 * numbers, atol=5e-3)  # 5 sigma of a time
+    assert np.all(variance < 1e-4)  # no more than one crest's own (weight 1e4)
+
+
+def test_a_steady_line_is_found_in_a_periodogram_without_its_padding(rng):
+    # mcfit.hum.find_steady_line is public: a periodogram of five items (unpadded) works.
+    from mcfit.hum import find_steady_line
+
+    t, x = _long_decay(50_000, rng, hum=0.02)
+    periodogram = spectrum._spectrum(t, x, 0.04, np.diff(t))[2]
+    assert periodogram[5] == 1.0
+    line = find_steady_line(t, x, periodogram[:5], 1e-3)
+    assert line == find_steady_line(t, x, periodogram, 1e-3)
+    assert line.removed and line.frequency == pytest.approx(0.13, rel=1e-4)

@@ -656,6 +656,8 @@ Sections:
   methods      the turning-point fit against the waveform fit by the equation
                of motion at Q 2 to 50: b's bias, RMSE and coverage in standard
                errors, time per record, and how often --method auto chose each
+  cycles       turning-point cost per cycle from 10^3 to 10^5 cycles (10^6
+               and a CSV of 10^7 samples and 10^6 cycles with --full)
   throughput   each speed target of issue 17 against its measured figure:
                turning points + fit per record, mcfit DIR at --jobs 1 and 2
                (--method auto and turning-points), start-up, and with --full

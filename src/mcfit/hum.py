@@ -61,12 +61,15 @@ def find_steady_line(t, x, periodogram, noise):
     """A :class:`SteadyLine` in the record, or None.
 
     ``periodogram``: (frequencies, power, window sum, window sum of squares, bin of the
-    strongest line) of the record's Hann periodogram over a stretch from ``t[0]``;
+    strongest line, and optionally the grid bins per bin of the stretch's length: more
+    than 1 when zero-padded, 1 if left out) of the record's Hann periodogram over a
+    stretch from ``t[0]``;
     ``noise``: the sample noise sigma.
     """
-    frequencies, power, window_sum, energy, k1 = periodogram
+    frequencies, power, window_sum, energy, k1, *padding = periodogram
+    oversampling = padding[0] if padding else 1.0
     f1 = peak_frequency(power, frequencies, k1)
-    k2 = _strongest_apart(frequencies, power, f1)
+    k2 = _strongest_apart(frequencies, power, f1, oversampling)
     if k2 is None:
         return None
     a1, a2 = (2.0 * np.sqrt(power[k]) / window_sum for k in (k1, k2))
@@ -77,7 +80,7 @@ def find_steady_line(t, x, periodogram, noise):
         if not a2 > noise:
             return None
     f2 = peak_frequency(power, frequencies, k2)
-    span = 1.0 / frequencies[1]
+    span = oversampling / frequencies[1]  # the stretch's duration
     steady1, decays1 = _steadiness(t, x, f1, span, noise)
     steady2, decays2 = _steadiness(t, x, f2, span, noise)
     if steady2 and decays1:
@@ -90,7 +93,7 @@ def find_steady_line(t, x, periodogram, noise):
         return None
     hum = _refined(t, x, hum, span)
     harmonics = _harmonics(frequencies, power, window_sum, hum, oscillation,
-                           max(noise, _RELATIVE * max(a1, a2)))
+                           max(noise, _RELATIVE * max(a1, a2)), oversampling)
     coefficients = _fit(t, x, hum, harmonics)
     amplitudes = tuple(float(np.hypot(*pair)) for pair in coefficients.reshape(-1, 2))
     return SteadyLine(float(hum), float(oscillation), harmonics, amplitudes,
@@ -123,11 +126,13 @@ def peak_frequency(power, frequencies, k):
     return float((k + min(max(offset, -1.0), 1.0)) * frequencies[1])
 
 
-def _strongest_apart(frequencies, power, f1):
-    """Bin of the strongest line more than _APART times from f1, off f1's harmonics."""
+def _strongest_apart(frequencies, power, f1, oversampling=1.0):
+    """Bin of the strongest line more than _APART times from f1, off f1's harmonics
+    (``oversampling``: grid bins per bin of the stretch's length, in which the bins of
+    _LOWEST_BIN and _CLEAR_BINS count)."""
     apart = (frequencies < f1 / _APART) | (frequencies > f1 * _APART)
-    apart[:_LOWEST_BIN] = False
-    step = frequencies[1]
+    apart[:int(np.ceil(_LOWEST_BIN * oversampling))] = False
+    step = frequencies[1] * oversampling
     order = np.rint(frequencies / f1)
     apart &= (order < 1) | (order > _ORDERS) | (np.abs(frequencies - order * f1)
                                                   > _CLEAR_BINS * step)
@@ -172,21 +177,22 @@ def _steadiness(t, x, f, span, noise):
     return bool(abs(log_ratio) < _STEADY + spread), bool(log_ratio < -(_DECAYS + spread))
 
 
-def _harmonics(frequencies, power, window_sum, hum, oscillation, threshold):
+def _harmonics(frequencies, power, window_sum, hum, oscillation, threshold, oversampling=1.0):
     """Harmonics of the hum standing above ``threshold``, off the oscillation's band and
-    harmonics."""
+    harmonics (bins of the stretch's length: ``oversampling`` grid bins each)."""
     kept = [1]
-    step = frequencies[1]
+    step = frequencies[1] * oversampling
+    reach = int(np.ceil(2 * oversampling))  # the peak within 2 bins
     for h in range(2, _HARMONICS + 1):
         f = h * hum
-        k = int(round(f / step))
-        if k + 2 >= power.size:
+        k = int(round(f / frequencies[1]))
+        if k + reach >= power.size:
             break
         order = round(f / oscillation)
         if oscillation / _APART < f < oscillation * _APART or (
                 1 <= order <= _ORDERS and abs(f - order * oscillation) <= _CLEAR_BINS * step):
             continue
-        if 2.0 * np.sqrt(power[k - 2:k + 3].max()) / window_sum > threshold:
+        if 2.0 * np.sqrt(power[k - reach:k + reach + 1].max()) / window_sum > threshold:
             kept.append(h)
     return tuple(kept)
 
@@ -219,8 +225,11 @@ def _refined(t, x, f, span):
             return np.column_stack([s, s * (tau / length)[:, None]])
         solution = np.linalg.lstsq(*_normal_equations(t, x, columns), rcond=None)[0]
         a, b, c, d = solution[2:]
+        power = a * a + b * b
+        if not power > 0:  # no line, or one so faint that its square underflows
+            break
         # A*cos(w+dw)tau + B*sin(w+dw)tau ~ ... + tau*dw*(B*cos - A*sin)
-        step = (c * b - d * a) / (a * a + b * b) / (2.0 * np.pi * length)
+        step = (c * b - d * a) / power / (2.0 * np.pi * length)
         if not np.isfinite(step) or abs(step) > 0.5 / span:
             break
         f += step

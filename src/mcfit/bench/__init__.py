@@ -10,6 +10,8 @@ formatter that turns it into the printed table:
 - :mod:`~mcfit.bench.verdicts`: the rates of the true model, a spurious and a missed term,
   and the coverage of the 95 % intervals, per scene.
 - :mod:`~mcfit.bench.methods`: the turning-point fit against the waveform fit over Q.
+- :mod:`~mcfit.bench.cycles`: turning-point cost per cycle from 10^3 to 10^6 cycles, and
+  a CSV of 10^7 samples and 10^6 cycles (issue 28).
 - :mod:`~mcfit.bench.throughput`: every target of issue 17 (per record, batch, start-up,
   10^7 samples) against its measured figure.
 

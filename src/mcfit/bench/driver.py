@@ -55,6 +55,10 @@ def run(config: BenchConfig = QUICK, sections=SECTIONS, plot_dir=None, progress=
 
         yield format_methods(run_methods(config.method_records, config.seed,
                                          qs=config.method_qs, progress=progress))
+    if "cycles" in sections:
+        from mcfit.bench.cycles import format_cycles, run_cycles
+
+        yield format_cycles(run_cycles(config, progress))
     if "throughput" in sections:
         from mcfit.bench.throughput import format_throughput, run_throughput
 

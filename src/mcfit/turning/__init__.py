@@ -202,7 +202,7 @@ def _coarse_spectrum(tf, xf, dt, steps):
     notes, removed = [], None
     if periodogram is None:
         return spectral_period, noise, xf, removed, notes
-    frequencies, power, _, energy, _ = periodogram
+    frequencies, power, _, energy = periodogram[:4]
     line = find_steady_line(tf, xf, periodogram, noise if np.isfinite(noise) else 0.0)
     if line is not None:
         notes.append(line.note())

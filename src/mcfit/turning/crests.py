@@ -3,9 +3,11 @@ amplitudes as projections onto it."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from mcfit.turning.common import _amplitude_sigma, _running_median
+from mcfit.turning.common import _CREST_BLOCK, _amplitude_sigma, _running_median
 from mcfit.turning.windows import (_clipped, _decay_rates_at, _fit_windows,
                                    _local_half_periods)
 
@@ -136,15 +138,54 @@ def _smooth_crest_times(numbers, times, weights, count):
     inside = numbers < count
     w[numbers[inside]] = weights[inside]
     r[numbers[inside]] = (times - (origin + numbers * slope))[inside]
-    moment, spread, target, points = _kernel_sums(w, r)
+    smooth = np.full(count, np.nan)
+    variance = np.full(count, np.nan)
+    local_slope = np.full(count, np.nan)
+    at_last = None
+    # In blocks of crests: each crest's fit is its own, and the moment matrices of all
+    # would take 0.6 kB a crest.
+    for lo in range(0, count, _CREST_BLOCK):
+        hi = min(lo + _CREST_BLOCK, count)
+        fits = _local_fits(w, r, lo, hi)
+        smooth[lo:hi], variance[lo:hi], local_slope[lo:hi] = fits[:3]
+        if lo <= last < hi:
+            at_last = [part[last - lo] for part in fits[3:]]
+    linear_last, row3_last, spread3_last, inverse2_last = at_last
+    grid = np.arange(count)
+    known = np.isfinite(smooth[:n_measured])
+    if not known.any():
+        return origin + grid * slope, slope, np.full(count, np.nan), (np.nan, np.nan)
+    # Across a stretch with no measured crest in reach, both are interpolated (the variance
+    # a little low there).
+    for values in (smooth, variance):
+        values[:n_measured] = np.interp(grid[:n_measured], grid[:n_measured][known],
+                                        values[:n_measured][known])
+    tail_slope = local_slope[last] if linear_last else 0.0
+    growth = (np.nan, np.nan)
+    if linear_last and np.isfinite(smooth[last]):
+        slope_row = inverse2_last[1]
+        growth = (float(row3_last @ spread3_last[:, :2] @ slope_row),
+                  float(slope_row @ spread3_last[:2, :2] @ slope_row))
+    beyond = grid > last
+    steps = grid[beyond] - last
+    smooth[beyond] = smooth[last] + tail_slope * steps
+    variance[beyond] = _continued_variance(variance[last], growth, steps)
+    return origin + grid * slope + smooth, slope + tail_slope, variance, growth
+
+
+def _local_fits(w, r, lo, hi):
+    """The local fits of _smooth_crest_times at crests ``lo:hi``: (smoothed offset,
+    phase variance, local slope, whether the line is determined, the weights of the fit
+    on the moments, the squared-kernel moment matrix, the inverse 2x2 moment matrix), one
+    row per crest."""
+    moment, spread, target, points = _kernel_sums(w, r, lo, hi)
+    count = hi - lo
     # Per crest: the 3x3 and 2x2 moment matrices (quadratic, linear), and the cross
     # moments of the two fits (3x2), all Hankel in the moments.
     hankel3 = np.array([[i + j for j in range(3)] for i in range(3)])
     matrix3 = np.moveaxis(moment[hankel3], -1, 0)
     matrix2 = matrix3[:, :2, :2]
     spread3 = np.moveaxis(spread[hankel3], -1, 0)
-    smooth = np.full(count, np.nan)
-    variance = np.full(count, np.nan)
     row3 = np.full((count, 3), np.nan)  # the quadratic fit's weights on the moments
     with np.errstate(divide="ignore", invalid="ignore"):
         det3 = np.linalg.det(matrix3)
@@ -167,41 +208,26 @@ def _smooth_crest_times(numbers, times, weights, count):
         smooth = np.einsum("ij,ji->i", row3, target)
         variance = np.where(fill, variance2, variance3)
         local_slope = np.einsum("ij,ji->i", inverse2[:, 1], target[:2])
-    grid = np.arange(count)
-    known = np.isfinite(smooth[:n_measured])
-    if not known.any():
-        return origin + grid * slope, slope, np.full(count, np.nan), (np.nan, np.nan)
-    # Across a stretch with no measured crest in reach, both are interpolated (the variance
-    # a little low there).
-    for values in (smooth, variance):
-        values[:n_measured] = np.interp(grid[:n_measured], grid[:n_measured][known],
-                                        values[:n_measured][known])
-    tail_slope = local_slope[last] if linear[last] else 0.0
-    growth = (np.nan, np.nan)
-    if linear[last] and np.isfinite(smooth[last]):
-        slope_row = inverse2[last, 1]
-        growth = (float(row3[last] @ spread3[last, :, :2] @ slope_row),
-                  float(slope_row @ spread3[last, :2, :2] @ slope_row))
-    beyond = grid > last
-    steps = grid[beyond] - last
-    smooth[beyond] = smooth[last] + tail_slope * steps
-    variance[beyond] = _continued_variance(variance[last], growth, steps)
-    return origin + grid * slope + smooth, slope + tail_slope, variance, growth
+    return smooth, variance, local_slope, linear, row3, spread3, inverse2
 
 
-def _kernel_sums(w, r):
-    """(moment, spread, target, points) about each crest m: rows p of sum_d K(d) d**p
-    w(m+d) (p < 5), of sum_d K(d)**2 d**p w(m+d) (p < 5, for the variances), of
-    sum_d K(d) d**p w(m+d) r(m+d) (p < 3), and the crests measured within reach; w and r
-    are 0 beyond the ends. One product of the windows about every crest with the
-    kernels."""
+def _kernel_sums(w, r, lo=0, hi=None):
+    """(moment, spread, target, points) about each crest m of ``lo:hi`` (default all):
+    rows p of sum_d K(d) d**p w(m+d) (p < 5), of sum_d K(d)**2 d**p w(m+d) (p < 5, for
+    the variances), of sum_d K(d) d**p w(m+d) r(m+d) (p < 3), and the crests measured
+    within reach; w and r are 0 beyond the ends. One product of the windows about every
+    crest with the kernels."""
+    hi = w.size if hi is None else hi
     reach = _PHASE_HALF_WIDTH
-    padded = np.zeros((3, w.size + 2 * reach))
-    padded[0, reach:-reach] = w
-    padded[1, reach:-reach] = w * r
-    padded[2, reach:-reach] = w > 0
+    padded = np.zeros((3, hi - lo + 2 * reach))
+    # padded[:, j] holds crest lo - reach + j, where there is one.
+    first, stop = max(lo - reach, 0), min(hi + reach, w.size)
+    part = slice(first - (lo - reach), stop - (lo - reach))
+    padded[0, part] = w[first:stop]
+    padded[1, part] = w[first:stop] * r[first:stop]
+    padded[2, part] = w[first:stop] > 0
     # windows[i, m] is padded[i, m:m + 2*reach + 1], a view.
-    windows = np.ndarray((3, w.size, 2 * reach + 1), buffer=padded,
+    windows = np.ndarray((3, hi - lo, 2 * reach + 1), buffer=padded,
                          strides=(padded.strides[0], padded.itemsize, padded.itemsize))
     sums = windows @ _KERNEL_COLUMNS
     return sums[0, :, :5].T, sums[0, :, 5:10].T, sums[1, :, :3].T, sums[2, :, 10]
@@ -233,7 +259,13 @@ def _phase_weights(magnitude, sigma):
     is sigma**2/y**2 * (1 + 3*sigma**2/y**2) to second order, and y**2 is estimated without
     the Rician bias as magnitude**2 - 2*sigma**2 (the weight is 0 where that is <= 0).
     """
-    floor = (1e-9 * np.max(magnitude, initial=0.0)) ** 2 + 1e-300  # a noise-free record
+    # In units of the power of two at the largest magnitude (an exact scaling): the squares
+    # of amplitudes near 1e-300 would underflow, and the weights be 0/0.
+    largest = float(np.max(magnitude, initial=0.0))
+    if largest > 0 and np.isfinite(largest):
+        unit = math.ldexp(1.0, math.frexp(largest)[1])
+        magnitude, sigma, largest = magnitude / unit, sigma / unit, largest / unit
+    floor = (1e-9 * largest) ** 2 + 1e-300  # a noise-free record
     variance = np.maximum(sigma**2, floor)
     square = np.maximum(magnitude**2 - 2.0 * variance, 0.0)
     return square**2 / (variance * (square + 3.0 * variance))

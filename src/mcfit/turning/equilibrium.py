@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mcfit.turning.common import _BLOCK_SAMPLES, _median
+from mcfit.turning.common import _BLOCK_SAMPLES, _CREST_BLOCK, _median, _segment_groups
 
 # Coefficients of a sixth difference.
 _SIXTH_DIFFERENCE = np.array([1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0])
@@ -45,10 +45,18 @@ def _equilibrium_line(t, x, period, noise):
     if starts.size < 3:
         return e0, e1, t_ref
     counts = np.diff(np.append(starts, t.size))
-    tau = t - t_ref
-    sums = [np.add.reduceat(v, starts) for v in (tau, x, tau * tau, tau * x)]
+    groups = _segment_groups(starts, t.size)  # whole periods, a block of samples at a time
+    parts = []
+    for first, stop, lo, hi in groups:
+        tau, xx = t[lo:hi] - t_ref, x[lo:hi]
+        local = starts[first:stop] - lo
+        parts.append([np.add.reduceat(v, local) for v in (tau, xx, tau * tau, tau * xx)])
+    sums = [np.concatenate(column) for column in zip(*parts)]
     for _ in range(3):
-        swing = np.maximum.reduceat(np.abs(x - (e0 + e1 * tau)), starts)
+        swing = np.concatenate([
+            np.maximum.reduceat(np.abs(x[lo:hi] - (e0 + e1 * (t[lo:hi] - t_ref))),
+                                starts[first:stop] - lo)
+            for first, stop, lo, hi in groups])
         largest = float(np.max(swing))
         floor = 1e-6 * largest
         if np.isfinite(noise):
@@ -91,13 +99,13 @@ def _equilibrium_correction(centres, fit, half, t_ref):
     index = np.flatnonzero(window_valid)  # first point of each full window
     if index.size < 3:
         return 0.0, 0.0
-    offsets = np.arange(width)
-    y_window = y[index[:, None] + offsets]
-    k_window = kappa[index[:, None] + offsets]
-    tau_window = centres[index[:, None] + offsets] - t_ref
-    rows = y_window @ coefficients
-    f0 = k_window @ coefficients
-    f1 = (k_window * tau_window) @ coefficients
+    rows, f0, f1 = np.empty((3, index.size))
+    for lo in range(0, index.size, _CREST_BLOCK):  # windows of 7 crests: 170 bytes each
+        part = index[lo:lo + _CREST_BLOCK, None] + np.arange(width)
+        k_window = kappa[part]
+        rows[lo:lo + part.shape[0]] = y[part] @ coefficients
+        f0[lo:lo + part.shape[0]] = k_window @ coefficients
+        f1[lo:lo + part.shape[0]] = (k_window * (centres[part] - t_ref)) @ coefficients
     if index.size >= _DRIFT_WINDOWS:
         design = np.array([f0, f1]).T
     else:

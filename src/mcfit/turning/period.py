@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from mcfit.turning.common import HALF_CYCLE_SPACING, _median
@@ -41,7 +43,10 @@ def _period_and_drift(centres, signs, y, used, period, weights=None):
     spread = np.ptp(amplitude)
     if spread <= 0:
         return result, result_sigma, float("nan"), float("nan")
-    centred = amplitude - np.mean(amplitude)  # better conditioned; the slope is the same
+    # Centred (better conditioned; the slope is the same), in units of the power of two
+    # at the spread (an exact scaling): polyfit squares them, which underflows near 1e-160.
+    unit = math.ldexp(1.0, math.frexp(spread)[1])
+    centred = (amplitude - np.mean(amplitude)) / unit
     fit, covariance = np.polyfit(centred, full, 1, cov="unscaled")
     residual = full - np.polyval(fit, centred)
     dof = max(full.size - 2, 1)
@@ -50,8 +55,8 @@ def _period_and_drift(centres, signs, y, used, period, weights=None):
     if not (np.isfinite(variance) and variance >= 0):  # amplitudes too alike to tell
         return result, result_sigma, float("nan"), float("nan")
     slope_sigma = float(np.sqrt(variance))
-    drift = float(fit[0] * spread / result)
-    drift_sigma = float(slope_sigma * spread / result)
+    drift = float(fit[0] * (spread / unit) / result)
+    drift_sigma = float(slope_sigma * (spread / unit) / result)
     return result, result_sigma, drift, drift_sigma
 
 
@@ -71,11 +76,12 @@ def _period_by_crest_times(times, signs, used, period, weights, fallback_sigma):
     number = np.round((t - t[0]) / (0.5 * period))
     design = np.column_stack([np.ones_like(t), 0.5 * number, 0.5 * signs[keep]])
     root = np.sqrt(weights[keep] / np.max(weights[keep]))
-    solution, _, rank, _ = np.linalg.lstsq(design * root[:, None], t * root, rcond=None)
+    weighted = design * root[:, None]
+    solution, _, rank, _ = np.linalg.lstsq(weighted, t * root, rcond=None)
     dof = t.size - 3
     if rank < 3 or dof <= 0 or np.unique(number).size != number.size:
         return period, fallback_sigma
     residual = (t - design @ solution) * root
-    covariance = np.linalg.pinv((design * root[:, None]).T @ (design * root[:, None]))
+    covariance = np.linalg.pinv(weighted.T @ weighted)
     variance = covariance[1, 1] * float(residual @ residual) / dof
     return float(solution[1]), float(np.sqrt(max(variance, 0.0)))

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcfit.errors import RecordError, TooFewTurningPoints
+from mcfit.turning.common import _BLOCK_SAMPLES, _segment_groups
 from mcfit.turning.equilibrium import _equilibrium_correction
 from mcfit.turning.period import _period_estimate
 from mcfit.turning.release import _held_crests
@@ -54,6 +55,7 @@ def _refine(samples, centres, signs, line, period, noise, held):
         e0, e1 = e0 + delta0, e1 + delta1
         settled = refinement > 0 and _shifts_within_noise(fit, half, noise)
         centres, signs, valid, y = _recentred(centres, signs, fit, half)
+        del fit  # not beside the next pass's (a hundred bytes a crest)
         half = _local_half_periods(centres, period, valid)
         gamma = _local_decay_rates(centres, y, np.pi / half, valid)
         period = _period_estimate(centres, signs, valid, period)
@@ -75,7 +77,8 @@ def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, sourc
     """Crest times and signs: half-cycles split by crossings with hysteresis."""
     width = max(1, int(samples_per_cycle * _SMOOTHING_CYCLES))
     smooth = _moving_average(x, width) if width > 1 else x.copy()
-    smooth -= e0 + e1 * (t - t_ref)
+    for lo in range(0, x.size, _BLOCK_SAMPLES):
+        smooth[lo:lo + _BLOCK_SAMPLES] -= e0 + e1 * (t[lo:lo + _BLOCK_SAMPLES] - t_ref)
     scale = float(np.percentile(np.abs(smooth[: min(smooth.size, 1 << 22)]), 99.5))
     threshold = _HYSTERESIS_Z * noise / np.sqrt(width)
     if not np.isfinite(threshold) or threshold <= 0:
@@ -84,21 +87,13 @@ def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, sourc
         raise RecordError(f"no oscillation above the noise in {source}: the signal swings by "
                           f"{scale:.3g} about its mean and the noise is {noise:.3g}. Check the "
                           "signal column.")
-    state = np.zeros(x.size, dtype=np.int8)
-    state[smooth > threshold] = 1
-    state[smooth < -threshold] = -1
-    marked = np.flatnonzero(state)
-    if marked.size == 0:
+    first, changes = _side_changes(smooth, threshold)
+    if first is None:
         raise RecordError(f"no oscillation found in {source}. Check the signal column.")
-    # Forward-fill the last definite side: each run of one side is a half-cycle.
-    filled_index = np.maximum.accumulate(np.where(state != 0, np.arange(x.size), -1))
-    side = np.where(filled_index >= 0, state[np.maximum(filled_index, 0)], 0)
-    del state, filled_index
-    changes = np.flatnonzero(np.diff(side) != 0) + 1
-    starts = np.concatenate([[marked[0]], changes[changes > marked[0]]])
+    # Each run of one side (the last definite one) is a half-cycle.
+    starts = np.concatenate([[first], changes[changes > first]])
     stops = np.concatenate([starts[1:], [x.size]])
-    run_sign = side[starts].astype(np.int64)
-    del side
+    run_sign = np.where(smooth[starts] > threshold, 1, -1).astype(np.int64)
     best = _run_crests(smooth, starts, stops, run_sign)
     # A crest on the very first or last sample is a cut half-cycle: no crest inside.
     inside = (best > 0) & (best < x.size - 1)
@@ -115,7 +110,9 @@ def _moving_average(x, width):
     """Mean of the ``width`` samples about each one (fewer at the ends, where the window
     is cut), from one cumulative sum."""
     n = x.size
-    cumulative = np.concatenate([[0.0], np.cumsum(x)])
+    cumulative = np.empty(n + 1)
+    cumulative[0] = 0.0
+    np.cumsum(x, out=cumulative[1:])
     half = width // 2
     if width > n:
         lo = np.clip(np.arange(n) - half, 0, n)
@@ -123,8 +120,12 @@ def _moving_average(x, width):
         return (cumulative[hi] - cumulative[lo]) / (hi - lo)
     smooth = np.empty_like(x)
     # Sample i averages cumulative[lo:hi] with lo = max(i - half, 0), hi = min(lo + width, n)
-    # after the first ``half``: whole windows in the middle, cut ones at the ends.
-    smooth[half:n - width + half + 1] = (cumulative[width:] - cumulative[:n - width + 1]) / width
+    # after the first ``half``: whole windows in the middle (a block at a time), cut ones at
+    # the ends.
+    for lo in range(0, n - width + 1, _BLOCK_SAMPLES):
+        hi = min(lo + _BLOCK_SAMPLES, n - width + 1)
+        smooth[half + lo:half + hi] = (cumulative[width + lo:width + hi]
+                                       - cumulative[lo:hi]) / width
     head = np.arange(half) - half + width
     smooth[:half] = cumulative[head] / head
     tail = np.arange(n - width + half + 1, n) - half
@@ -134,13 +135,38 @@ def _moving_average(x, width):
 
 def _run_crests(smooth, starts, stops, run_sign):
     """Index of the crest of each run ``starts:stops`` (contiguous, covering the record from
-    ``starts[0]``): its first sample farthest out on its side, all runs at once."""
+    ``starts[0]``): its first sample farthest out on its side, the runs of a block of
+    samples at once."""
+    best = np.empty(starts.size, dtype=np.int64)
     lengths = stops - starts
-    signed = smooth[starts[0]:] * np.repeat(run_sign, lengths)
-    offsets = starts - starts[0]
-    peak = np.maximum.reduceat(signed, offsets)
-    at_peak = np.flatnonzero(signed == np.repeat(peak, lengths))
-    return at_peak[np.searchsorted(at_peak, offsets)] + starts[0]
+    for first, stop, lo, hi in _segment_groups(starts, stops[-1]):
+        runs = slice(first, stop)
+        signed = smooth[lo:hi] * np.repeat(run_sign[runs], lengths[runs])
+        offsets = starts[runs] - lo
+        peak = np.maximum.reduceat(signed, offsets)
+        at_peak = np.flatnonzero(signed == np.repeat(peak, lengths[runs]))
+        best[runs] = at_peak[np.searchsorted(at_peak, offsets)] + lo
+    return best
+
+
+def _side_changes(smooth, threshold):
+    """(first sample beyond +-``threshold``, the samples beyond it on the other side from
+    the last one beyond it, the first included), or (None, None) when none is beyond it.
+    A block of samples at a time."""
+    first, last, changes = None, 0, []
+    for lo in range(0, smooth.size, _BLOCK_SAMPLES):
+        block = smooth[lo:lo + _BLOCK_SAMPLES]
+        state = (block > threshold).astype(np.int8) - (block < -threshold)
+        marked = np.flatnonzero(state)
+        if marked.size == 0:
+            continue
+        sides = state[marked]
+        first = lo + int(marked[0]) if first is None else first
+        changes.append(lo + marked[sides != np.concatenate([[last], sides[:-1]])])
+        last = sides[-1]
+    if first is None:
+        return None, None
+    return first, np.concatenate(changes)
 
 
 def _shifts_within_noise(fit, half, noise):

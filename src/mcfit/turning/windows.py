@@ -105,10 +105,12 @@ def _fit_windows(samples, centres, signs, half, gamma, e0, e1, t_ref):
                               for where in (samples.at_top, samples.at_bottom))
     unbroken = _without_gaps(samples.steps, lo, hi, half)
     first = 0
+    cumulative = np.cumsum(hi - lo)
     while first < k:
         # Windows whose samples fit in one block.
-        cumulative = np.cumsum(hi[first:] - lo[first:])
-        last = first + max(1, int(np.searchsorted(cumulative, _BLOCK_SAMPLES, side="right")))
+        before = int(cumulative[first - 1]) if first else 0
+        last = first + max(1, int(np.searchsorted(cumulative[first:], before + _BLOCK_SAMPLES,
+                                                  side="right")))
         last = min(last, k)
         sel = slice(first, last)
         sums = _window_sums(t, x, lo[sel], hi[sel], centres[sel], np.pi / half[sel],
