@@ -96,3 +96,46 @@ def test_the_tie_needs_the_evidence_of_a_term_test():
 
     from mcfit.fit.selection import LRT_ALPHA, TIE_DELTA
     assert TIE_DELTA == pytest.approx(stats.chi2.isf(LRT_ALPHA, 1), abs=0.01)
+
+
+def test_drag_is_not_called_an_amplitude_form():
+    """Viscous damping with quadratic drag kappa*x'|x'| (Q about 3, noise 5e-3): the
+    velocity form of drag is not fitted, so the amplitude forms win by default; the form
+    is "cannot tell", not "amplitude"."""
+    from independent_motion import integrate
+
+    omega = 2 * math.pi
+    t, x = integrate(lambda _, v, __: 2.0 * v + 1.2 * v * abs(v), omega, 1.0, 6.0, 100.0)
+    fit = analyse_record(_noisy(t, x, 5e-3, 0)).fit
+    assert "a" in fit.model and fit.damping_form == "cannot tell"
+    assert "quadratic drag" in fit.damping_form_reason
+
+
+def test_a_forced_waveform_fit_that_misfits_says_so():
+    t = np.arange(0.0, 8.0, 0.01)
+    beta = math.pi / 2  # Q = 2
+    x = np.exp(-beta * t) * np.cos(math.sqrt(4 * math.pi**2 - beta**2) * t)
+    fit = analyse_record(_noisy(t, x, 1e-3, 1), method="waveform", model="a").fit
+    assert any("the equation of motion fits the waveform with reduced chi-square" in w
+               for w in fit.warnings)
+
+
+def test_a_rise_with_no_decay_before_it_is_refused_in_one_line():
+    """A flat table of amplitudes with a bump in its second half: no decay to keep before
+    the rise, so the cut would leave nothing (it said "only 0 usable turning points")."""
+    from mcfit.errors import RecordError
+    from mcfit.turning import turning_points_from_table
+
+    n = np.arange(200.0)
+    y = 1 + 0.5 * np.exp(-(((n - 150) / 10) ** 2))
+    y = y + np.random.default_rng(1).normal(0.0, 0.002, n.size)
+    with pytest.raises(RecordError, match="with no decay before it"):
+        turning_points_from_table(n, y, domain="cycle")
+
+
+def test_a_beat_leaves_the_regimes_unresolved():
+    t = np.arange(0.0, 60.0, 0.05)
+    x = np.cos(2 * np.pi * t) + 0.8 * np.cos(2 * np.pi * 1.1 * t)
+    analysis = analyse_record(_noisy(t, x, 1e-3, 2))
+    assert any("beating of two modes" in w for w in analysis.warnings)
+    assert not analysis.fit.resolved

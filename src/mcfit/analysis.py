@@ -10,6 +10,7 @@ import numpy as np
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.decay_fit import fit_model_values, misfit_warning
+from mcfit.fit.models import terms_of
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
@@ -199,7 +200,9 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
     x = _without_steady_line(record.t, record.x, turning.steady_line)
     waveform = fit_both_forms(record.t, x, turning, fit, criterion=criterion, forced=model)
     if method == "waveform":
-        return replace(waveform, method_reason="asked for")
+        warned = () if describes_waveform(waveform) else (_misfit_warning(waveform),)
+        return replace(waveform, method_reason="asked for",
+                       warnings=waveform.warnings + warned)
     if describes_waveform(waveform):
         return replace(waveform, method_reason=f"{said}: fitted by the equation of motion")
     if not misfit_warning(fit.reduced_chi_square, fit.n_points - 1 - len(fit.selection.terms)):
@@ -238,6 +241,13 @@ def fit_both_forms(t, x, turning, start_fit, *, criterion="aicc", forced=None):
     gap = scores[other] - scores[best]
     names = {"amplitude": "Eq. 20.55's amplitude forms", "velocity": "the velocity forms "
              "(viscous, sliding friction)"}
+    kept = set(terms_of(fits[best].model))
+    if (best == "amplitude" and "a" in kept) or kept <= {"c"}:
+        why = ("a fluid term is kept, whose velocity form (quadratic drag) is not fitted"
+               if "a" in kept else "sliding friction has one form only")
+        return replace(fits[best], damping_form="cannot tell", damping_form_reason=(
+            f"{names[best]} fit the waveform best, but {why}: the coefficients are those of "
+            f"{names[best]}"))
     if gap <= FORM_TIE:
         return replace(fits[best], damping_form="cannot tell", damping_form_reason=(
             f"{names[best]} and {names[other]} fit the waveform equally well (AICc "
@@ -383,6 +393,8 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
             if getattr(chosen, "method", None) != getattr(fit, "method", None):
                 chosen = with_large_swing_warning(chosen, turning, degrees)
             fit = chosen
+        if turning.warnings and fit.model not in ("power",):
+            fit = _unresolved(fit)  # a beat or disturbance was left out: no confident verdict
     except McfitError as error:
         return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)
     error = None if fit.message is None else f"{source}: {fit.message}"
@@ -407,8 +419,8 @@ def _few_swings_analysis(record, *, criterion, model):
                                   forced=model)
     except McfitError:
         return None
-    fit = replace(waveform, method_reason=f"only {turning.count} turning points stand above "
-                  "the noise, too few for the averaged law: fitted by the equation of motion")
+    fit = replace(waveform, method_reason="too few turning points for the averaged law "
+                  "were found: fitted by the equation of motion from a damped cosine's start")
     if not describes_waveform(fit):
         fit = _unresolved(replace(fit, warnings=fit.warnings + (_misfit_warning(fit),)))
     error = None if fit.message is None else f"{record.source}: {fit.message}"

@@ -297,15 +297,17 @@ def _short(value):
     return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
-def _b_name(data):
-    return "viscous" if data.get("damping_form") == "velocity" else "hysteretic"
+_B_NAMES = {"velocity": "viscous", "cannot tell": "viscous or hysteretic"}
+
+
+def _b_name(form):
+    """What b is called: viscous where the velocity forms were fitted, either where the
+    record cannot tell the forms apart, else hysteretic."""
+    return _B_NAMES.get(form, REGIME_NAMES["b"])
 
 
 def _regime_name(term, fit):
-    """The regime of ``term``; b is viscous where the velocity forms were fitted."""
-    if term == "b" and getattr(fit, "damping_form", None) == "velocity":
-        return "viscous"
-    return REGIME_NAMES[term]
+    return _b_name(getattr(fit, "damping_form", None)) if term == "b" else REGIME_NAMES[term]
 
 
 def _damping_form_lines(data) -> list[str]:
@@ -425,7 +427,8 @@ def to_text(analysis: Analysis) -> str:
     lines.append(f"  parameters ({unit}):")
     at = f"{fit.t0:.4g} s" if fit.domain == "time" else f"n = {fit.t0:.4g}"
     labels = {"y0": f"y0 (amplitude at {at})",
-              "a": "a (fluid)", "b": f"b ({_b_name(data)})", "c": "c (Coulomb)"}
+              "a": "a (fluid)", "b": f"b ({_b_name(data.get('damping_form'))})",
+              "c": "c (Coulomb)"}
     units = data["coefficient_units"]
     for k in ("y0",) if fit.model == POWER else ("y0", "a", "b", "c"):
         value = _format(params[k]["value"], params[k]["stderr"])

@@ -105,8 +105,8 @@ def _turning_points(t, times, motion, damped, e0, e1, noise):
         excluded_reason=("",) * count, period=2 * math.pi / damped,
         equilibrium=float(e0 + e1 * (t[0] - times[0])), equilibrium_drift=float(e1),
         noise_sigma=float(noise), t_start=float(t[0]),
-        notes=(f"only {count} turning points stand above the noise: they are those of a "
-               "damped cosine fitted to the samples, and start the waveform fit",))
+        notes=(f"too few turning points for the averaged law: the {count} shown are those "
+               "of a damped cosine fitted to the samples, which starts the waveform fit",))
 
 
 def _start_fit(times, amplitudes, omega, beta):

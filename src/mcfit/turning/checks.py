@@ -148,13 +148,19 @@ def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
                          "turning points before it left out")
         else:
             end = _end_of_decay(smooth, dip, noise, sigma_y[index])
+            low = f"{smooth[end]:.3g} at t = {centres[index[end]]:.6g}"
+            high = f"{smooth[k]:.3g} at t = {centres[index[k]]:.6g}"
+            if end == 0:
+                raise RecordError(
+                    f"the amplitude in {source} rises from {low} to {high} with no decay "
+                    "before it (a beat, a disturbance or a drive): this is not a free decay. "
+                    "Check the record, or cut it to a decaying part with `start` and `end`.")
             reasons[index[end]:] = np.where(reasons[index[end]:] == "", "after the decay",
                                             reasons[index[end]:])
             beat = beat or smooth[dip] > 3 * max(noise, floor)
             # A later pass cuts earlier: its words replace the earlier ones.
-            ending = (f"the amplitude falls to {smooth[dip]:.3g} at t = "
-                      f"{centres[index[dip]]:.6g} and rises again to {smooth[k]:.3g} at "
-                      f"t = {centres[index[k]]:.6g}", float(centres[index[end]]))
+            ending = (f"the amplitude falls to {low} and rises again to {high}",
+                      float(centres[index[end]]))
         index = np.flatnonzero(reasons == "")
     if ending is None:
         return release, notes, []
