@@ -46,7 +46,8 @@ import numpy as np
 
 from mcfit.errors import UsageError
 from mcfit.hum import find_steady_line, subtract_steady_line
-from mcfit.turning.checks import _check_count, _checked_samples, _closing_notes, _cut_at_rise
+from mcfit.turning.checks import (_check_count, _checked_samples, _closing_notes,
+                                  _cut_at_rise, _cut_at_stop)
 from mcfit.turning.checks import _with_scatter
 from mcfit.turning.common import _median
 from mcfit.turning.crests import _phase_weights, _projected_crests, _with_excluded
@@ -170,6 +171,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
                                                 floor_level, phase_lost)
     sigma_y, scatter = _with_scatter(y, sigma_y, log_step, reasons == "")
     notes += tail + scatter
+    notes += _cut_at_stop(crests, y, sigma_y, reasons)
     rise_release, rise_notes, warnings = _cut_at_rise(crests, y, sigma_y, reasons, source,
                                                       floor_level)
     notes += rise_notes

@@ -121,6 +121,44 @@ def _amplitude_scatter(y, sigma, log_step, candidate):
     return float(_robust_sigma(d3) / np.sqrt(20.0))
 
 
+# A crest amplitude this many of its sigmas below zero is no crest: the motion has ended.
+_BELOW_ZERO_Z = 3.0
+
+
+def _cut_at_stop(centres, y, sigma_y, reasons):
+    """Notes: the used turning points from the first whose amplitude lies clearly below
+    zero where the mass rests (:func:`_rests`) are left out in ``reasons`` as "after the
+    decay" (changed in place). A swing has its crest beyond the equilibrium; a mass that
+    Coulomb friction holds off centre reads, crest by crest, as amplitudes alternating
+    about zero."""
+    index = np.flatnonzero(reasons == "")
+    z = np.divide(y[index], sigma_y[index], out=np.zeros(index.size),
+                  where=sigma_y[index] > 0)
+    below = [k for k in np.flatnonzero(z < -_BELOW_ZERO_Z) if _rests(y[index[k:]])]
+    if not below or below[0] < MIN_TURNING_POINTS:
+        return []
+    first = index[below[0]]
+    stopped = np.arange(y.size) >= first
+    count = int(np.count_nonzero(stopped & (reasons == "")))
+    reasons[stopped & (reasons == "")] = "after the decay"
+    return [f"the motion stops by t = {centres[first]:.6g}: the amplitude there is "
+            f"{y[first]:.3g}, {-y[first] / sigma_y[first]:.3g} sigma below zero (the mass "
+            f"rests off centre, held by friction, or the record ends its swings); the {count} "
+            "turning points from there are left out"]
+
+
+def _rests(y, crests=4):
+    """Whether amplitudes from one clearly below zero read as a mass at rest off centre:
+    the next ``crests`` alternate in sign at one size (within a factor 2), where a beat's
+    node turns the phase over and the amplitudes grow again."""
+    head = y[:crests]
+    if head.size < 2:
+        return False
+    size = np.abs(head)
+    return bool(np.all(np.sign(head[1:]) == -np.sign(head[:-1]))
+                and size.max() <= 2 * size.min())
+
+
 def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
     """(release time or NaN, notes, warnings): where the smoothed amplitudes rise again
     after a fall, the part the decay does not need is left out in ``reasons`` (changed in
