@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mcfit.errors import InputError
-from mcfit.records import read_record
+from mcfit.io import read_record
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 

@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from mcfit.cli import cli
 from mcfit.errors import UsageError
-from mcfit.records import read_record, read_records
+from mcfit.io import read_record, read_records
 
 PERIOD = 1.0
 RATE = 50.0
