@@ -58,6 +58,62 @@ def capstone_runs(path: Path) -> None:
     frame.to_csv(path, index=False)
 
 
+def ni_waveform(path: Path) -> None:
+    """An NI LabVIEW "Write Waveforms to Spreadsheet" CSV of an RLC circuit's ringing
+    (V_C, 500 kHz): a preamble (waveform, t0, delta t, a blank line), the header, and
+    time stamps as dates with microseconds; the trigger column steps to 5 V."""
+    from datetime import datetime, timedelta
+
+    with tempfile_csv() as name:
+        simulate(name, "--b 500 --y0 1 --period 3.3333333e-4 --duration 0.006 "
+                       "--rate 500000 --noise 0.002 --seed 6")
+        run = pd.read_csv(name)
+    start = datetime(2021, 4, 16, 11, 27, 25, 437502)
+
+    def stamp(k):
+        moment = start + timedelta(microseconds=2 * k)
+        return f"{moment.month}/{moment.day}/{moment.year}  {moment:%H:%M:%S.%f}"
+    lines = ["waveform,Trig,V_C", f"t0,{stamp(0)},{stamp(0)}",
+             "delta t,2.000000E-6,2.000000E-6", "", "time,Trig,V_C"]
+    lines += [f"{stamp(k)},{5.0 if k >= 50 else 0.0:.6f},{v:.6f}"
+              for k, v in enumerate(run["x"])]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def phyphox_xls(path: Path) -> None:
+    """A phyphox "Excel" export (legacy .xls) of a gyroscope on a pendulum: the swing is
+    about z, x and y hold noise. Written with xlwt (a test dependency)."""
+    import xlwt
+
+    with tempfile_csv() as name:
+        simulate(name, "--a 0.3 --b 0.05 --y0 1.5 --period 1.6 --duration 40 --rate 50 "
+                       "--noise 0.003 --seed 7")
+        run = pd.read_csv(name)
+    rng = np.random.default_rng(8)
+    columns = {"Time (s)": run["t"], "Rotation x (rad/s)": rng.normal(0.0, 0.01, run.shape[0]),
+               "Rotation y (rad/s)": rng.normal(0.002, 0.01, run.shape[0]),
+               "Rotation z (rad/s)": run["x"]}
+    book = xlwt.Workbook()
+    sheet = book.add_sheet("Raw Data")
+    for j, (label, values) in enumerate(columns.items()):
+        sheet.write(0, j, label)
+        for i, value in enumerate(values):
+            sheet.write(i + 1, j, round(float(value), 6))
+    book.save(str(path))
+
+
+def tempfile_csv():
+    """A context giving the name of a CSV file in a temporary folder."""
+    import contextlib
+    import tempfile
+
+    @contextlib.contextmanager
+    def named():
+        with tempfile.TemporaryDirectory() as folder:
+            yield str(Path(folder) / "run.csv")
+    return named()
+
+
 def main() -> None:
     for name, options in SCENES.items():
         simulate(name, options)
@@ -76,6 +132,8 @@ def main() -> None:
         stream.write("# peak speed per swing from a photogate, against cycle number n\n")
         table.to_csv(stream, index=False)
     capstone_runs(HERE / "capstone_runs.csv")
+    ni_waveform(HERE / "ni_waveform.csv")
+    phyphox_xls(HERE / "phyphox_gyroscope.xls")
 
 
 if __name__ == "__main__":

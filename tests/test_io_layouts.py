@@ -33,7 +33,7 @@ def test_a_time_label_of_an_entry_names_the_time(tmp_path):
 def test_the_run_label_of_an_entry_splits_runs(tmp_path):
     path = tmp_path / "runs.csv"
     lines = ["Time (s) Run #3,Angle (rad) Run #3,Time (s) Run #8,Angle (rad) Run #8"]
-    lines += [f"{0.1 * i:.1f},{(-1) ** i * 0.98 ** i:.4f},{0.1 * i:.1f},{(-1) ** i * 0.97 ** i:.4f}"
-              for i in range(100)]
+    lines += [f"{0.1 * i:.1f},{(-1) ** i * 0.98 ** i:.4f},"
+              f"{0.1 * i:.1f},{(-1) ** i * 0.97 ** i:.4f}" for i in range(100)]
     path.write_text("\n".join(lines) + "\n")
     assert [r.run for r in read_records(path)] == ["Run 3", "Run 8"]

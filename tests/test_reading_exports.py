@@ -340,11 +340,12 @@ def test_ods_workbook():
 
 
 def test_xls_without_its_engine_names_the_package(monkeypatch):
-    monkeypatch.setitem(sys.modules, "xlrd", None)  # as if xlrd were not installed
+    # A dependency, so only a broken install lacks it.
+    monkeypatch.setitem(sys.modules, "python_calamine", None)
     path = write("old.xls", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + bytes(504))
     with pytest.raises(InputError, match="^reading .xls workbooks such as old.xls needs the "
-                                         "Python package xlrd: install it \\(pip install "
-                                         "xlrd\\)"):
+                                         "Python package python-calamine: install it "
+                                         "\\(pip install python-calamine\\)"):
         read_record(path)
 
 

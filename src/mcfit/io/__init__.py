@@ -1,4 +1,4 @@
-"""Reading decay records (CSV, TSV, semicolon, whitespace text, Excel, stdin) into a :class:`Record`.
+"""Reading decay records (CSV, TSV, whitespace text, Excel, stdin) into a :class:`Record`.
 
 This package is the only part of mcfit that imports pandas. It turns whatever file a person
 has into two float64 arrays, ``t`` and ``x``, and says in ``Record.notes`` what it decided on

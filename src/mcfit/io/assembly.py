@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mcfit.errors import InputError
-from mcfit.io.columns import _Run, _chosen_columns, _resolve_column
+from mcfit.io.columns import _Run, _axis_siblings, _chosen_columns, _resolve_column
 from mcfit.io.table import _describe, _read_columns
 from mcfit.io.times import _repair_times, _timestamp_problem
 from mcfit.io.tokens import _CYCLE_NAMES, _SECONDS_PER_UNIT, _base_name
@@ -169,8 +169,10 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         other = ""
         if others:
             other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
-        notes.append(f"signal column: {_describe(table, signal_index)} (chosen automatically; "
-                     f"use `signal_col` to change{other})")
+        most = (", the component that oscillates most"
+                if _axis_siblings(table, signal_index, others) else "")
+        notes.append(f"signal column: {_describe(table, signal_index)}{most} (chosen "
+                     f"automatically; use `signal_col` to change{other})")
 
     if domain == "time" and time_unit is not None:
         seconds = _SECONDS_PER_UNIT.get(time_unit.strip().lower().replace("μ", "u").replace("µ", "u"))

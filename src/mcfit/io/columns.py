@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -190,7 +191,39 @@ def _choose_signal(table, time_index, ignored, columns):
     oscillating = ([i for i in primary if _oscillation_score(sample[i].values) > 0.02]
                    if len(primary) > 1 else primary)
     order = oscillating + [i for i in primary if i not in oscillating] + secondary
-    return order[0], [i for i in order[1:]]
+    axes = [order[0]] + _axis_siblings(table, order[0], order[1:])
+    if len(axes) > 1:  # a vector sensor: the component that swings most
+        strongest = max(axes, key=lambda i: _oscillation_size(sample[i].values))
+        order.remove(strongest)
+        order.insert(0, strongest)
+    return order[0], order[1:]
+
+
+# A vector sensor's components: "Rotation x (rad/s)", "acc_y", "Gyroscope z".
+_AXIS_NAME = re.compile(r"^(.+?)[\s_\-]+([xyz])$")
+
+
+def _axis_key(table, index):
+    """(quantity, unit) of a column named as a component x, y or z, else None."""
+    base, unit = _base_name(table.names[index])
+    match = _AXIS_NAME.match(base)
+    return (match.group(1), unit) if match else None
+
+
+def _axis_siblings(table, index, others):
+    """The columns of ``others`` that are components of the same quantity as ``index``."""
+    key = _axis_key(table, index)
+    return [i for i in others if key is not None and _axis_key(table, i) == key]
+
+
+def _oscillation_size(values):
+    """How much a column swings: the largest spectral amplitude of its detrended values."""
+    v = values[np.isfinite(values)]
+    if v.size < 8:
+        return 0.0
+    index = np.arange(v.size)
+    centred = v - np.polyval(np.polyfit(index, v, 1), index)
+    return float(np.abs(np.fft.rfft(centred)[1:]).max())
 
 
 def _chosen_columns(table, time_col, signal_col, rate, run, angle_from):

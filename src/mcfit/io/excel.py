@@ -9,9 +9,10 @@ from mcfit.errors import InputError, UsageError
 from mcfit.io.table import _text_table
 from mcfit.io.tokens import _is_number
 
-# Workbook extensions: pandas engine and the package that provides it.
+# Workbook extensions: pandas engine and the package that provides it. Calamine reads the
+# legacy .xls (pandas deprecates xlrd) and .ods (many times faster than odfpy).
 _EXCEL_ENGINES = {".xlsx": ("openpyxl", "openpyxl"), ".xlsm": ("openpyxl", "openpyxl"),
-                  ".xls": ("xlrd", "xlrd"), ".ods": ("odf", "odfpy")}
+                  ".xls": ("calamine", "python-calamine"), ".ods": ("calamine", "python-calamine")}
 
 
 def _sheet_name(sheets, sheet, name):

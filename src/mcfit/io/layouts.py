@@ -53,12 +53,57 @@ class ExportLayout:
 # Lines of text a layout's ``recognise`` sees.
 RECOGNISE_LINES = 20
 
+
+def _fields(line):
+    """A preamble line's fields, split at its first tab, semicolon or comma."""
+    sep = next((s for s in "\t;," if s in line), None)
+    return [f.strip().strip('"') for f in (line.split(sep) if sep else [line])], sep
+
+
+def _is_ni_waveform(lines):
+    """NI LabVIEW "Write Waveforms to Spreadsheet": ``waveform``, ``t0``, ``delta t`` lines."""
+    keys = [_fields(line)[0][0].lower() for line in lines if line.strip()][:3]
+    return keys == ["waveform", "t0", "delta t"]
+
+
+def _ni_waveform_rows(lines):
+    """(lines, notes): the preamble dropped, the time column built from ``delta t``.
+
+    The time column, when the export has one, holds date-times to the microsecond
+    (``4/16/2021  11:27:25.437502``); ``delta t`` gives the same times exactly, as
+    seconds after ``t0``. None when ``delta t`` is not one positive number.
+    """
+    starts = [i for i, line in enumerate(lines) if line.strip()]
+    t0_fields, _ = _fields(lines[starts[1]])
+    step_fields, sep = _fields(lines[starts[2]])
+    try:
+        steps = {float(f) for f in step_fields[1:] if f}
+    except ValueError:
+        return None
+    if len(steps) != 1 or not min(steps) > 0 or len(starts) < 5:
+        return None
+    step = steps.pop()
+    header_at = starts[3]
+    header, _ = _fields(lines[header_at])
+    has_time = header[0].lower() == "time"
+    out = [sep.join(["time (s)"] + header[has_time:])]
+    rows = (line for line in lines[header_at + 1:] if line.strip())
+    for i, line in enumerate(rows):
+        values = line.split(sep, 1)[1] if has_time else line
+        out.append(f"{i * step!r}{sep}{values}")
+    t0 = " ".join(t0_fields[1].split()) if len(t0_fields) > 1 else "?"
+    return out, [f"NI LabVIEW waveform export: time built from its delta t, {step:g} s "
+                 f"({1 / step:g} Hz), as seconds after t0 = {t0}"]
+
 LAYOUTS = (
+    ExportLayout("NI LabVIEW waveform to spreadsheet", sample="ni_waveform.csv",
+                 recognise=_is_ni_waveform, rewrite=_ni_waveform_rows),
     ExportLayout("PASCO Capstone runs side by side", sample="capstone_runs.csv",
                  run_label=re.compile(r"\brun\s*#?\s*(\d+)\s*$", re.IGNORECASE)),
     ExportLayout("LabVIEW measurement file (.lvm)", time_names=("x_value",)),
     ExportLayout("Vernier Logger Pro", time_names=("latest: time",)),
-    ExportLayout("phyphox"),
+    # A sensor's x, y and z columns: the one that oscillates most is the signal (columns).
+    ExportLayout("phyphox (Excel .xls)", sample="phyphox_gyroscope.xls"),
     ExportLayout("Tracker (Open Source Physics)"),
     ExportLayout("serial logger (Arduino and others)"),
 )

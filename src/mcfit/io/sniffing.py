@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import re
 
-from mcfit.io.tokens import _CLOCK, _COMMA_DECIMAL, _FORTRAN_EXPONENT, _ISO_DATE_TIME, _MAX_ROWS_AS_DATA, _NUMBER_TOKEN, _SPECIAL_TOKENS, _is_number, _split
+from mcfit.io.tokens import (_CLOCK, _COMMA_DECIMAL, _FORTRAN_EXPONENT, _ISO_DATE_TIME,
+                             _MAX_ROWS_AS_DATA, _NUMBER_TOKEN, _SPECIAL_TOKENS, _is_number,
+                             _split)
 
 def _sniff_separator(lines):
     """(sep, decimal): sep None means whitespace."""
@@ -266,3 +268,29 @@ def _header_fields(line, sep, width):
     if width == 1 and len(fields) > 1 and sep is None:
         fields = [" ".join(fields)]
     return fields
+
+
+# Text of at least this many lines, fewer than this share of them mostly numbers, is prose.
+_PROSE_LINES = 10
+_MIN_NUMERIC_SHARE = 0.1
+_TOKEN_BREAK = re.compile(r"[\s,;|]+")
+
+
+def _numeric_lines(lines):
+    """(lines mostly numbers, lines with content) among ``lines``, comments left out."""
+    numeric = content = 0
+    for line in lines:
+        stripped = line.strip()
+        if not stripped or stripped[0] in "#%":
+            continue
+        content += 1
+        tokens = [t.strip("\"'") for t in _TOKEN_BREAK.split(stripped) if t]
+        numbers = sum(1 for t in tokens if _token_kind(t, True) != "text")
+        numeric += 2 * numbers >= len(tokens)
+    return numeric, content
+
+
+def _is_prose(lines):
+    """Whether text is prose or markup rather than a table: lines of numbers are rare."""
+    numeric, content = _numeric_lines(lines)
+    return content >= _PROSE_LINES and numeric < _MIN_NUMERIC_SHARE * content

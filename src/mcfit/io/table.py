@@ -14,7 +14,8 @@ import pandas as pd
 
 from mcfit.errors import InputError
 from mcfit.io.decoding import _binary_problem, _decode, _drop_trailing_nul, _read_whole
-from mcfit.io.sniffing import _header_names, _sniff_separator
+from mcfit.io.layouts import recognised_layout
+from mcfit.io.sniffing import _header_names, _is_prose, _numeric_lines, _sniff_separator
 from mcfit.io.tidying import _tidy_text
 from mcfit.io.tokens import _CLOCK, _ISO_DATE_TIME, _MAX_ROWS_AS_DATA, _is_number, _shown, _split
 
@@ -71,7 +72,17 @@ def _text_table(name, head, path, tail=b"", tidied=None):
             lines = text.splitlines()
         else:
             lines = lines[:-1]  # the last line may be cut by the sniff limit
+    if tidied is None and (path is None or len(head) < _SNIFF_BYTES) and _is_prose(lines):
+        numeric, content = _numeric_lines(lines)
+        raise InputError(f"{name} is not a table of numbers: {numeric} of its {content} lines "
+                         "are numbers (it reads as prose or markup). Give a CSV or text export "
+                         "with a time and a signal column.")
     if tidied is None:
+        rewritten = _rewritten_layout(name, lines, path, tail or len(head) == _SNIFF_BYTES)
+        if rewritten is not None:
+            table = _text_table(name, rewritten[0], None)
+            table.notes[:0] = notes + rewritten[1]
+            return table
         tail_lines = []
         if tail and not encoding.startswith("utf-16"):
             tail_lines = tail.decode(encoding, errors="replace").splitlines()[1:]
@@ -171,6 +182,20 @@ def _text_table(name, head, path, tail=b"", tidied=None):
     table.clock, table.transposed, table.decimal = clock, transposed, decimal
     table.token_lines, table.sep = lines[data_start:data_start + 2000], sep
     return table
+
+
+def _rewritten_layout(name, lines, path, cut):
+    """(utf-8 text, notes) for an export layout that :data:`LAYOUTS` rewrites, else None;
+    ``cut`` says that ``lines`` are the first of a longer file at ``path``."""
+    layout = recognised_layout(lines)
+    if layout is None or layout.rewrite is None:
+        return None
+    if path is not None and cut:
+        lines = _decode(_read_whole(name, path))[0].splitlines()
+    rewritten = layout.rewrite(lines)
+    if rewritten is None:
+        return None
+    return ("\n".join(rewritten[0]) + "\n").encode("utf-8"), rewritten[1]
 
 
 def _sample_frame(sample_text, sep, decimal, comment, width):

@@ -11,8 +11,12 @@ from __future__ import annotations
 
 import re
 
-from mcfit.io.sniffing import _LAYOUT_LINES, _Layout, _MIN_VALUES_IN_A_ROW, _classify_line, _find_layout, _header_fields, _is_note, _layout_is_plain, _surely_plain, _token_kind
-from mcfit.io.tokens import _CLOCK, _FORTRAN_EXPONENT, _ISO_DATE_TIME, _KNOWN_UNITS, _MAX_ROWS_AS_DATA, _NUMBER_TOKEN, _SPECIAL_TOKENS, _base_name, _count, _is_time_name
+from mcfit.io.sniffing import (_LAYOUT_LINES, _Layout, _MIN_VALUES_IN_A_ROW, _classify_line,
+                               _find_layout, _header_fields, _is_note, _layout_is_plain,
+                               _surely_plain, _token_kind)
+from mcfit.io.tokens import (_CLOCK, _FORTRAN_EXPONENT, _ISO_DATE_TIME, _KNOWN_UNITS,
+                             _MAX_ROWS_AS_DATA, _NUMBER_TOKEN, _SPECIAL_TOKENS, _base_name, _count,
+                             _is_time_name)
 
 # A units row: short tokens such as s, m, V, m/s^2, deg, rad, (s), [mm].
 _UNIT_TOKEN = re.compile(r"^[\(\[]?[A-Za-zµμ°%Ω][A-Za-z0-9µμ°%Ω/^*·.\- ]{0,9}[\)\]]?$")
