@@ -102,6 +102,17 @@ def phyphox_xls(path: Path) -> None:
     book.save(str(path))
 
 
+def pipe_table(path: Path) -> None:
+    """A markdown pipe table of a short decay, as pasted from a lab notebook."""
+    with tempfile_csv() as name:
+        simulate(name, "--b 0.2 --y0 2 --period 1 --duration 10 --rate 20 --noise 0.002 "
+                       "--seed 9")
+        run = pd.read_csv(name)
+    lines = ["| t (s) | angle (deg) |", "|---:|---:|"]
+    lines += [f"| {t:.2f} | {x:.4f} |" for t, x in zip(run["t"], run["x"])]
+    path.write_text("\n".join(lines) + "\n")
+
+
 def tempfile_csv():
     """A context giving the name of a CSV file in a temporary folder."""
     import contextlib
@@ -134,6 +145,7 @@ def main() -> None:
     capstone_runs(HERE / "capstone_runs.csv")
     ni_waveform(HERE / "ni_waveform.csv")
     phyphox_xls(HERE / "phyphox_gyroscope.xls")
+    pipe_table(HERE / "pipe_table.md")
 
 
 if __name__ == "__main__":

@@ -42,6 +42,13 @@ def test_an_ni_waveform_export_takes_its_time_from_delta_t(tmp_path, with_time):
                for note in record.notes)
 
 
+def test_a_well_sampled_ringing_beside_a_trigger_step_is_the_signal(tmp_path):
+    # 36 crossings in 3000 samples: rare per step, yet eighteen cycles.
+    record = read_record(_ni_waveform(tmp_path / "scope.csv"))
+    assert record.signal_column == "V_C"
+    assert "other candidates: 'Trig' (column 2)" in record.notes[-1]
+
+
 def test_an_ni_waveform_fits_v_c_from_the_command_line(tmp_path):
     import json
     path = _ni_waveform(tmp_path / "scope.csv")

@@ -134,6 +134,10 @@ def test_repeated_time_and_signal_columns_are_runs(tmp_path):
     records = read_records(str(path))
     assert [r.run for r in records] == ["Run 1", "Run 2"]
     np.testing.assert_allclose(records[1].x, np.round(second[1], 5))
+    # Named, the signal of each run is its own column of that name.
+    records = read_records(str(path), signal_col="x")
+    np.testing.assert_allclose(records[0].x, np.round(first[1], 5))
+    np.testing.assert_allclose(records[1].x, np.round(second[1], 5))
 
 
 def shared_time_file(path):

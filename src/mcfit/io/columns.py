@@ -112,10 +112,17 @@ def _resolve_column(table, spec, role, within=None):
                              "1-based index or a name.")
         return index - 1
     spec = str(spec)
+    candidates = range(len(table.names)) if within is None else within
+    named = [i for i in candidates if _plain_name(table, i) == spec]
+    if len(named) > 1:
+        places = ", ".join(str(i + 1) for i in named[:-1]) + f" and {named[-1] + 1}"
+        raise UsageError(f"column '{spec}' is ambiguous in {table.name}: columns {places} are "
+                         f"named '{spec}'. Use {option} with a 1-based index.")
+    if named:
+        return named[0]
     if spec in table.names:
         return table.names.index(spec)
     wanted = _base_name(spec)[0]
-    candidates = range(len(table.names)) if within is None else within
     matches = [i for i in candidates if table.names[i].strip().lower() == spec.strip().lower()
                or _base_name(table.names[i])[0] == wanted
                or _RUN_SUFFIX.sub("", _base_name(_plain_name(table, i))[0]) == wanted]
@@ -133,16 +140,21 @@ def _strictly_increasing(values):
     return v.size >= 3 and bool(np.all(np.diff(v) > 0))
 
 
-def _oscillation_score(values):
-    """Fraction of steps where the signal crosses its (detrended) middle; 0 if not varying."""
+# A column oscillates when it crosses its detrended middle at this fraction of its steps,
+# or this many times (four cycles: a well sampled oscillation crosses it rarely per step).
+_MIN_CROSSING_FRACTION = 0.02
+_MIN_CROSSINGS = 8
+
+
+def _oscillates(values):
+    """Whether a column crosses its (detrended) middle often enough to be an oscillation."""
     v = values[np.isfinite(values)]
     if v.size < 8 or np.ptp(v) == 0:
-        return 0.0
+        return False
     index = np.arange(v.size)
     trend = np.polyval(np.polyfit(index, v, 1), index)
-    centred = v - trend
-    crossings = np.count_nonzero(np.diff(np.sign(centred)) != 0)
-    return crossings / v.size
+    crossings = np.count_nonzero(np.diff(np.sign(v - trend)) != 0)
+    return crossings > _MIN_CROSSING_FRACTION * v.size or crossings >= _MIN_CROSSINGS
 
 
 def _choose_time(table, rate, columns):
@@ -188,7 +200,7 @@ def _choose_signal(table, time_index, ignored, columns):
                  if any(w in _base_name(table.names[i])[0] for w in _SECONDARY_SIGNAL_WORDS)]
     primary = [i for i in candidates if i not in secondary]
     # Scoring orders the primary candidates; one needs no score.
-    oscillating = ([i for i in primary if _oscillation_score(sample[i].values) > 0.02]
+    oscillating = ([i for i in primary if _oscillates(sample[i].values)]
                    if len(primary) > 1 else primary)
     order = oscillating + [i for i in primary if i not in oscillating] + secondary
     axes = [order[0]] + _axis_siblings(table, order[0], order[1:])

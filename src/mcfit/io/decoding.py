@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 
 from mcfit.errors import InputError
+from mcfit.io.limits import MAX_BYTES, too_large
 
 # Control characters other than tab, newline, vertical tab, form feed and carriage return.
 _CONTROL_CHARACTER = re.compile("[\x00-\x08\x0e-\x1f\x7f-\x9f]")
@@ -73,9 +74,13 @@ def _decode_leniently(data, encoding, errors):
 
 def _read_whole(name, path):
     try:
-        return path.read_bytes()
+        with open(path, "rb") as stream:
+            data = stream.read(MAX_BYTES + 1)
     except OSError as exc:
         raise InputError(f"cannot read {name}: {exc.strerror}. Check its permissions.") from None
+    if len(data) > MAX_BYTES:  # it grew since it was opened
+        raise too_large(name, "the file", len(data), MAX_BYTES)
+    return data
 
 
 def _drop_trailing_nul(text):

@@ -6,6 +6,8 @@ import numpy as np
 import pandas as pd
 
 from mcfit.errors import InputError, UsageError
+from mcfit.io.limits import (MAX_SHARED_STRING_BYTES, MAX_SHEET_BYTES, MAX_SHEETS,
+                             too_large)
 from mcfit.io.table import _text_table
 from mcfit.io.tokens import _is_number
 
@@ -50,6 +52,8 @@ def _excel_table(path, name, sheet, suffix):
         raise InputError(f"{name} is a password-protected (encrypted) workbook or an old "
                          ".xls renamed .xlsx, which mcfit cannot open. In Excel remove the "
                          "password and save as .xlsx, or export CSV.")
+    if engine == "openpyxl":
+        _check_workbook_parts(path, name)
     try:
         book = pd.ExcelFile(path, engine=engine)
     except ImportError:
@@ -62,18 +66,15 @@ def _excel_table(path, name, sheet, suffix):
                          "CSV.") from None
     notes = []
     try:
+        if len(book.sheet_names) > MAX_SHEETS:
+            raise _too_many_sheets(name, len(book.sheet_names))
         if sheet is not None:
             sheet_name = _sheet_name(book.sheet_names, sheet, name)
             raw = _read_sheet(book, sheet_name, sheet)
         else:
             # A first sheet of notes: the data are on the first sheet that holds numbers.
-            for sheet_name in book.sheet_names:
-                raw = _read_sheet(book, sheet_name, sheet)
-                if _numeric_rows(raw) >= 2:
-                    break
-            else:
-                sheet_name = book.sheet_names[0]
-                raw = _read_sheet(book, sheet_name, sheet)
+            sheet_name = _first_sheet_with_numbers(path, book.sheet_names)
+            raw = _read_sheet(book, sheet_name, sheet)
             if sheet_name != book.sheet_names[0]:
                 notes.append(f"the first sheet, '{book.sheet_names[0]}', holds no data")
     finally:
@@ -99,12 +100,59 @@ def _read_sheet(book, sheet_name, sheet):
                          f"({type(exc).__name__}). Re-save the workbook or export CSV.") from None
 
 
-def _numeric_rows(raw):
-    """Rows with at least one number, date or time cell."""
+def _numeric_rows(rows):
+    """Rows (tuples of cells) with at least one number, date or time cell."""
     def numeric(v):
         return (not isinstance(v, (str, bool)) and not pd.isna(v)) if not isinstance(
             v, str) else _is_number(v)
-    return sum(any(numeric(v) for v in row) for row in raw.itertuples(index=False, name=None))
+    return sum(any(numeric(v) for v in row) for row in rows)
+
+
+# Rows of each sheet looked at to find the first that holds data.
+_SCAN_ROWS = 10000
+
+
+def _first_sheet_with_numbers(path, sheet_names):
+    """The first sheet with two rows holding a number in its first rows, else the first
+    sheet. Calamine reads a sheet's first rows in microseconds, so that many sheets of
+    notes or empty sheets before the data cost little."""
+    from python_calamine import CalamineWorkbook
+    try:
+        book = CalamineWorkbook.from_path(str(path))
+        for sheet_name in sheet_names:
+            if _numeric_rows(book.get_sheet_by_name(sheet_name).to_python(
+                    nrows=_SCAN_ROWS)) >= 2:
+                return sheet_name
+    except Exception:  # calamine refuses the workbook: the engine reads the first sheet
+        pass
+    return sheet_names[0]
+
+
+def _check_workbook_parts(path, name):
+    """Refuse a zip workbook whose sheet count, text or cells pass :mod:`mcfit.io.limits`
+    (from the sizes its zip directory gives, before anything is decompressed)."""
+    import zipfile
+    try:
+        with zipfile.ZipFile(path) as archive:
+            parts = archive.infolist()
+    except (zipfile.BadZipFile, OSError):
+        return  # the engine says what is wrong
+    sheets = [p for p in parts
+              if p.filename.startswith("xl/worksheets/") and p.filename.endswith(".xml")]
+    if len(sheets) > MAX_SHEETS:
+        raise _too_many_sheets(name, len(sheets))
+    strings = sum(p.file_size for p in parts if p.filename.lower() == "xl/sharedstrings.xml")
+    if strings > MAX_SHARED_STRING_BYTES:
+        raise too_large(name, "its text (shared strings)", strings, MAX_SHARED_STRING_BYTES)
+    cells = sum(p.file_size for p in sheets)
+    if cells > MAX_SHEET_BYTES:
+        raise too_large(name, "the cells of its sheets", cells, MAX_SHEET_BYTES)
+
+
+def _too_many_sheets(name, count):
+    return InputError(f"{name} is not read: it holds {count} sheets, past the {MAX_SHEETS} "
+                      "that no record reaches. Copy the sheet with the data to a workbook of "
+                      "its own, or export it as CSV.")
 
 
 def _cell_text(value):

@@ -95,9 +95,34 @@ def _ni_waveform_rows(lines):
     return out, [f"NI LabVIEW waveform export: time built from its delta t, {step:g} s "
                  f"({1 / step:g} Hz), as seconds after t0 = {t0}"]
 
+_PIPE_ALIGNMENT = re.compile(r"^\|?(\s*:?-+:?\s*\|)*\s*:?-+:?\s*\|?$")
+
+
+def _is_pipe_table(lines):
+    """A markdown pipe table: its first lines start and end with ``|``."""
+    content = [line.strip() for line in lines if line.strip()][:3]
+    return len(content) >= 2 and all(line.startswith("|") and line.endswith("|")
+                                     for line in content)
+
+
+def _pipe_table_rows(lines):
+    """(lines, notes): the cells of a pipe table, tab-separated, alignment rows dropped."""
+    out = []
+    for line in lines:
+        stripped = line.strip()
+        if not stripped or _PIPE_ALIGNMENT.match(stripped):
+            continue
+        if stripped.startswith("|") and stripped.endswith("|") and len(stripped) > 1:
+            stripped = stripped[1:-1]
+        out.append("\t".join(cell.strip() for cell in stripped.split("|")))
+    return out, ["markdown pipe table: cells read between the | marks"]
+
+
 LAYOUTS = (
     ExportLayout("NI LabVIEW waveform to spreadsheet", sample="ni_waveform.csv",
                  recognise=_is_ni_waveform, rewrite=_ni_waveform_rows),
+    ExportLayout("markdown pipe table", sample="pipe_table.md", recognise=_is_pipe_table,
+                 rewrite=_pipe_table_rows),
     ExportLayout("PASCO Capstone runs side by side", sample="capstone_runs.csv",
                  run_label=re.compile(r"\brun\s*#?\s*(\d+)\s*$", re.IGNORECASE)),
     ExportLayout("LabVIEW measurement file (.lvm)", time_names=("x_value",)),

@@ -12,6 +12,7 @@ from pathlib import Path
 
 from mcfit.errors import InputError, UsageError
 from mcfit.io.excel import _CFB_SIGNATURE, _EXCEL_ENGINES, _excel_table
+from mcfit.io.limits import MAX_BYTES, read_at_most, too_large
 from mcfit.io.table import _SNIFF_BYTES, _text_table
 
 TEXT_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat")
@@ -20,16 +21,18 @@ EXCEL_EXTENSIONS = (".xlsx", ".xlsm")
 
 def _open_table(source, sheet):
     if hasattr(source, "read"):
-        data = source.read()
         name = getattr(source, "name", None)  # an open file's path, as it was given
         name = name if isinstance(name, str) and not name.startswith("<") else "<stdin>"
-        return _text_table(name, _to_bytes(data), None)
+        return _text_table(name, read_at_most(source, name), None)
     if isinstance(source, str) and source == "-":
-        return _text_table("<stdin>", _to_bytes(sys.stdin.buffer.read()), None)
+        if sys.stdin is None:
+            raise InputError("standard input is closed, so - cannot be read. Give the record "
+                             "on stdin (mcfit - < run.csv) or name the file.")
+        return _text_table("<stdin>", read_at_most(sys.stdin.buffer, "<stdin>"), None)
     path = Path(source)
     name = str(source)  # as given: in a batch, file names alone can be ambiguous
     try:
-        mode = path.stat().st_mode
+        info = path.stat()
     except FileNotFoundError:
         raise InputError(f"file not found: {source}. Check the path and the working "
                          "directory.") from None
@@ -39,12 +42,14 @@ def _open_table(source, sheet):
     except OSError as exc:  # a folder on the way that may not be entered, a loop...
         raise InputError(f"cannot read {source}: {exc.strerror or exc}. Check the "
                          "permissions of the file and of its folders.") from None
-    if stat.S_ISDIR(mode):
+    if stat.S_ISDIR(info.st_mode):
         raise InputError(f"{source} is a directory, not a file. Give a data file inside it.")
-    if not stat.S_ISREG(mode):
+    if not stat.S_ISREG(info.st_mode):
         # Reading a FIFO or a device could block forever or never end.
         raise InputError(f"{source} is not a regular file (a pipe, socket or device). Copy "
                          "the record to a file, or pipe it to mcfit as - (stdin).")
+    if info.st_size > MAX_BYTES:
+        raise too_large(name, "the file", info.st_size, MAX_BYTES)
     suffix = path.suffix.lower()
     if suffix in _REFUSED_EXTENSIONS:
         raise InputError(f"unsupported file type '{suffix}' for {name}; use .csv, .tsv, .txt, "
@@ -90,7 +95,8 @@ def _gzip_table(path, name, sheet):
     import gzip
     import zlib
     try:
-        data = gzip.decompress(path.read_bytes())
+        with gzip.open(path) as stream:
+            data = read_at_most(stream, name, "the decompressed text")
     except (OSError, EOFError, zlib.error) as exc:
         raise InputError(f"cannot decompress {name}: {exc}. The gzip file is damaged; "
                          "decompress it with another program or export the data again.") from None

@@ -13,6 +13,7 @@ from mcfit.io.tokens import (_CLOCK, _COMMA_DECIMAL, _FORTRAN_EXPONENT, _ISO_DAT
                              _MAX_ROWS_AS_DATA, _NUMBER_TOKEN, _SPECIAL_TOKENS, _is_number,
                              _split)
 
+
 def _sniff_separator(lines):
     """(sep, decimal): sep None means whitespace."""
     def consistent(sep):
@@ -270,27 +271,51 @@ def _header_fields(line, sep, width):
     return fields
 
 
-# Text of at least this many lines, fewer than this share of them mostly numbers, is prose.
+# Text of at least this many lines, fewer than this share of them mostly numbers and no
+# block of this many numeric lines in a row, is prose.
 _PROSE_LINES = 10
 _MIN_NUMERIC_SHARE = 0.1
+_MIN_DATA_BLOCK = 5
 _TOKEN_BREAK = re.compile(r"[\s,;|]+")
 
 
+def _is_numeric_line(stripped):
+    """Whether at least half the fields of a stripped content line are numbers or times."""
+    tokens = [t.strip("\"'") for t in _TOKEN_BREAK.split(stripped) if t]
+    return 2 * sum(1 for t in tokens if _token_kind(t, True) != "text") >= len(tokens)
+
+
 def _numeric_lines(lines):
-    """(lines mostly numbers, lines with content) among ``lines``, comments left out."""
-    numeric = content = 0
+    """(lines mostly numbers, lines with content, longest block of numeric lines)."""
+    numeric = content = block = longest = 0
     for line in lines:
         stripped = line.strip()
         if not stripped or stripped[0] in "#%":
             continue
         content += 1
-        tokens = [t.strip("\"'") for t in _TOKEN_BREAK.split(stripped) if t]
-        numbers = sum(1 for t in tokens if _token_kind(t, True) != "text")
-        numeric += 2 * numbers >= len(tokens)
-    return numeric, content
+        if _is_numeric_line(stripped):
+            numeric += 1
+            block += 1
+            longest = max(longest, block)
+        else:
+            block = 0
+    return numeric, content, longest
+
+
+def _holds_numbers(lines, at_least=2):
+    """Whether ``at_least`` content lines are mostly numbers (stops when they are found)."""
+    found = 0
+    for line in lines:
+        stripped = line.strip()
+        if stripped and stripped[0] not in "#%" and _is_numeric_line(stripped):
+            found += 1
+            if found >= at_least:
+                return True
+    return False
 
 
 def _is_prose(lines):
     """Whether text is prose or markup rather than a table: lines of numbers are rare."""
-    numeric, content = _numeric_lines(lines)
-    return content >= _PROSE_LINES and numeric < _MIN_NUMERIC_SHARE * content
+    numeric, content, longest = _numeric_lines(lines)
+    return (content >= _PROSE_LINES and numeric < _MIN_NUMERIC_SHARE * content
+            and longest < _MIN_DATA_BLOCK)

@@ -15,7 +15,8 @@ import pandas as pd
 from mcfit.errors import InputError
 from mcfit.io.decoding import _binary_problem, _decode, _drop_trailing_nul, _read_whole
 from mcfit.io.layouts import recognised_layout
-from mcfit.io.sniffing import _header_names, _is_prose, _numeric_lines, _sniff_separator
+from mcfit.io.sniffing import (_header_names, _holds_numbers, _is_prose, _numeric_lines,
+                               _sniff_separator)
 from mcfit.io.tidying import _tidy_text
 from mcfit.io.tokens import _CLOCK, _ISO_DATE_TIME, _MAX_ROWS_AS_DATA, _is_number, _shown, _split
 
@@ -47,6 +48,8 @@ class _Table:
 def _text_table(name, head, path, tail=b"", tidied=None):
     """A :class:`_Table` for delimited text; ``tidied`` is (names present, notes, clock
     columns, transposed) for text already rewritten by :func:`_tidy_text`."""
+    if path is not None and len(head) == _SNIFF_BYTES and head.isspace():
+        head, path, tail = _read_whole(name, path), None, b""  # the data start further on
     if not head or head.isspace():  # as head.strip() == b"", without copying the file
         raise InputError(f"{name} is empty. Give a file with a time and a signal column.")
     text, encoding, enc_note, exact_text = _decode(head)
@@ -66,14 +69,15 @@ def _text_table(name, head, path, tail=b"", tidied=None):
                          "end in .xlsx).")
     lines = text.splitlines()
     if path is not None and len(head) == _SNIFF_BYTES and lines:
-        if len(lines) <= _MAX_ROWS_AS_DATA:  # a few very long lines: data written in rows
+        # A few very long lines (data written in rows), or no data yet: read it all.
+        if len(lines) <= _MAX_ROWS_AS_DATA or not _holds_numbers(lines[:-1]):
             head, path, tail = _read_whole(name, path), None, b""
             text, encoding, enc_note, exact_text = _decode(head)
             lines = text.splitlines()
         else:
             lines = lines[:-1]  # the last line may be cut by the sniff limit
     if tidied is None and (path is None or len(head) < _SNIFF_BYTES) and _is_prose(lines):
-        numeric, content = _numeric_lines(lines)
+        numeric, content, _ = _numeric_lines(lines)
         raise InputError(f"{name} is not a table of numbers: {numeric} of its {content} lines "
                          "are numbers (it reads as prose or markup). Give a CSV or text export "
                          "with a time and a signal column.")
@@ -136,7 +140,8 @@ def _text_table(name, head, path, tail=b"", tidied=None):
     if comment_chars:
         notes.append("comment lines starting with " + " or ".join(sorted(comment_chars))
                      + " skipped")
-    comment = "#" if "#" in comment_chars else ("%" if comment_chars else None)
+    # "#" starts a comment even where none was seen: a note may follow the sniffed lines.
+    comment = "%" if comment_chars == {"%"} else "#"
     other_comment = "%" if comment == "#" and "%" in comment_chars else None
 
     def source_bytes():

@@ -9,6 +9,7 @@ import numpy as np
 from mcfit.io.table import _describe
 from mcfit.io.tokens import _split
 
+
 def _timestamp_problem(t):
     """Describe unusable logger timestamps (repeats or bursts), or None."""
     # Copies of a long record's times are avoided: they set the reader's peak memory.
