@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import io
 import warnings
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -46,91 +47,130 @@ class _Table:
 
 
 def _text_table(name, head, path, tail=b"", tidied=None):
-    """A :class:`_Table` for delimited text; ``tidied`` is (names present, notes, clock
+    """A :class:`_Table` for delimited text: ``head`` is the file's first bytes (all of it
+    when ``path`` is None) and ``tail`` its last; ``tidied`` is (names present, notes, clock
     columns, transposed) for text already rewritten by :func:`_tidy_text`."""
-    if path is not None and len(head) == _SNIFF_BYTES and head.isspace():
-        head, path, tail = _read_whole(name, path), None, b""  # the data start further on
-    if not head or head.isspace():  # as head.strip() == b"", without copying the file
+    source = _decoded(name, head, path, tail, tidied is None)
+    if tidied is None:
+        table = _rewritten_table(source)
+        if table is not None:
+            return table
+        return _plain_table(source, None, source.notes, [], False)
+    return _plain_table(source, *tidied)
+
+
+@dataclass
+class _Text:
+    """A record's text as decoded, and where it came from: ``path`` is None once ``head``
+    holds the whole file, else ``head`` holds its first bytes and ``tail`` its last."""
+
+    name: str
+    head: bytes
+    path: object
+    tail: bytes
+    text: str = ""
+    encoding: str = "utf-8"
+    exact: bool = True  # every byte decoded as pandas will decode it
+    notes: list = field(default_factory=list)
+    lines: list = field(default_factory=list)
+
+    @property
+    def cut(self):
+        """Whether ``head`` is only the first part of the file."""
+        return self.path is not None and len(self.head) == _SNIFF_BYTES
+
+    def decode(self):
+        """Decode ``head``; returns the note on its encoding, or None."""
+        self.text, self.encoding, note, self.exact = _decode(self.head)
+        return note
+
+    def read_whole(self):
+        self.head, self.path, self.tail = _read_whole(self.name, self.path), None, b""
+
+
+def _decoded(name, head, path, tail, drop_nul):
+    """The :class:`_Text` of a record, its ``lines`` split; the whole file is read when its
+    first megabyte holds no data. Refuses empty and binary files."""
+    source = _Text(name, head, path, tail)
+    if source.cut and head.isspace():
+        source.read_whole()  # the data start further on
+    if not source.head or source.head.isspace():  # as strip() == b"", without a copy
         raise InputError(f"{name} is empty. Give a file with a time and a signal column.")
-    text, encoding, enc_note, exact_text = _decode(head)
-    notes = [enc_note] if enc_note else []
-    if tidied is None and (text.endswith("\x00") or tail.endswith(b"\x00")):
-        if path is not None and tail:
-            head, path, tail = _read_whole(name, path), None, b""
-            text, encoding, enc_note, exact_text = _decode(head)
-        text, nul_note = _drop_trailing_nul(text)
+    note = source.decode()
+    source.notes = [note] if note else []
+    if drop_nul and (source.text.endswith("\x00") or source.tail.endswith(b"\x00")):
+        if source.path is not None and source.tail:
+            source.read_whole()
+            source.decode()
+        text, nul_note = _drop_trailing_nul(source.text)
         if nul_note:
-            notes.append(nul_note)
-            head, path, encoding, exact_text = text.encode("utf-8"), None, "utf-8", True
-    problem = _binary_problem(text)
+            source.notes.append(nul_note)
+            source.head, source.path, source.text = text.encode("utf-8"), None, text
+            source.encoding, source.exact = "utf-8", True
+    problem = _binary_problem(source.text)
     if problem is not None:
         raise InputError(f"{name} is not a text record: it holds binary data ({problem}). "
                          "Give a CSV, TSV or text export of the data (an Excel workbook must "
                          "end in .xlsx).")
-    lines = text.splitlines()
-    if path is not None and len(head) == _SNIFF_BYTES and lines:
+    source.lines = source.text.splitlines()
+    if source.cut and source.lines:
         # A few very long lines (data written in rows), or no data yet: read it all.
-        if len(lines) <= _MAX_ROWS_AS_DATA or not _holds_numbers(lines[:-1]):
-            head, path, tail = _read_whole(name, path), None, b""
-            text, encoding, enc_note, exact_text = _decode(head)
-            lines = text.splitlines()
+        if len(source.lines) <= _MAX_ROWS_AS_DATA or not _holds_numbers(source.lines[:-1]):
+            source.read_whole()
+            source.decode()
+            source.lines = source.text.splitlines()
         else:
-            lines = lines[:-1]  # the last line may be cut by the sniff limit
-    if tidied is None and (path is None or len(head) < _SNIFF_BYTES) and _is_prose(lines):
+            source.lines = source.lines[:-1]  # the last line may be cut by the sniff limit
+    return source
+
+
+def _rewritten_table(source):
+    """The table of text that an export layout or the tidying step rewrites, else None;
+    prose is refused."""
+    name, lines = source.name, source.lines
+    if not source.cut and _is_prose(lines):
         numeric, content, _ = _numeric_lines(lines)
         raise InputError(f"{name} is not a table of numbers: {numeric} of its {content} lines "
                          "are numbers (it reads as prose or markup). Give a CSV or text export "
                          "with a time and a signal column.")
-    if tidied is None:
-        rewritten = _rewritten_layout(name, lines, path, tail or len(head) == _SNIFF_BYTES)
-        if rewritten is not None:
-            table = _text_table(name, rewritten[0], None)
-            table.notes[:0] = notes + rewritten[1]
-            return table
-        tail_lines = []
-        if tail and not encoding.startswith("utf-16"):
-            tail_lines = tail.decode(encoding, errors="replace").splitlines()[1:]
-        tidy = _tidy_text(name, lines, tail_lines)
-        if tidy is not None and path is not None and (tail or len(head) == _SNIFF_BYTES):
-            whole, _, _, _ = _decode(_read_whole(name, path))
-            tidy = _tidy_text(name, whole.splitlines(), [])
-        if tidy is not None:
-            tidy_text, tidy_notes, clock, transposed, has_names = tidy
-            return _text_table(name, tidy_text.encode("utf-8"), None,
-                               tidied=(has_names, notes + tidy_notes, clock, transposed))
-        clock, transposed = [], False
-    else:
-        has_names, notes, clock, transposed = tidied
-    # Data lines: not blank, not a comment.
-    comment_chars = set()
-    first_content = None
-    content = []
-    for number, line in enumerate(lines):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if stripped[0] in "#%":
-            comment_chars.add(stripped[0])
-            continue
-        if first_content is None:
-            first_content = number
-        content.append((number, stripped))
-        if len(content) >= 200:
-            break
+    rewritten = _rewritten_layout(source)
+    if rewritten is not None:
+        table = _text_table(name, rewritten[0], None)
+        table.notes[:0] = source.notes + rewritten[1]
+        return table
+    tail_lines = []
+    if source.tail and not source.encoding.startswith("utf-16"):
+        tail_lines = source.tail.decode(source.encoding, errors="replace").splitlines()[1:]
+    tidy = _tidy_text(name, lines, tail_lines)
+    if tidy is not None and source.cut:
+        whole, _, _, _ = _decode(_read_whole(name, source.path))
+        tidy = _tidy_text(name, whole.splitlines(), [])
+    if tidy is None:
+        return None
+    tidy_text, tidy_notes, clock, transposed, has_names = tidy
+    return _text_table(name, tidy_text.encode("utf-8"), None,
+                       tidied=(has_names, source.notes + tidy_notes, clock, transposed))
+
+
+def _plain_table(source, has_names, notes, clock, transposed):
+    """The table of text that is at most a header line over rows (``has_names`` None: the
+    separator and header are sniffed; else tab-separated, as the tidying step writes)."""
+    name, lines = source.name, source.lines
+    content, comment_chars = _content_lines(lines)
     if not content:
         raise InputError(f"{name} holds only comments or blank lines. Give a file with data rows.")
-    if tidied is None:
+    if has_names is None:
         sep, decimal = _sniff_separator([line for _, line in content[:50]])
         first_fields = _split(content[0][1], sep)
-        has_header = not all(_is_number(f) or f == "" for f in first_fields)
+        has_names = not all(_is_number(f) or f == "" for f in first_fields)
     else:  # one tab-separated header line (if any) and numbers with decimal points
-        sep, decimal, has_header = "\t", ".", has_names
-    if has_header:
+        sep, decimal = "\t", "."
+    if has_names:
         names = _header_names(content[0][1], sep, content[1:])
-        data_start = content[1][0] if len(content) > 1 else None
-        if data_start is None:
+        if len(content) < 2:
             raise InputError(f"{name} has a header row but no data rows. Give a file with "
                              "data below the header.")
+        data_start = content[1][0]
     else:
         ncols = max(len(_split(line, sep)) for _, line in content[:50])
         names = [f"column {i + 1}" for i in range(ncols)]
@@ -143,30 +183,7 @@ def _text_table(name, head, path, tail=b"", tidied=None):
     # "#" starts a comment even where none was seen: a note may follow the sniffed lines.
     comment = "%" if comment_chars == {"%"} else "#"
     other_comment = "%" if comment == "#" and "%" in comment_chars else None
-
-    def source_bytes():
-        if path is None:
-            return io.BytesIO(head)
-        return path
-
-    def reader(indices, nrows=None, as_text=False):
-        kwargs = dict(
-            sep=r"\s+" if sep is None else sep, decimal=decimal, header=None,
-            skiprows=_skip_rows(data_start, lines, other_comment), usecols=list(indices),
-            comment=comment, skip_blank_lines=True, encoding=encoding, engine="c",
-            nrows=nrows, quotechar='"', skipinitialspace=sep is not None,
-        )
-        if as_text:
-            kwargs["dtype"] = str
-            kwargs["keep_default_na"] = False
-        else:
-            kwargs["dtype"] = np.float64
-        if sep is None:
-            kwargs.pop("skipinitialspace")
-        frame = pd.read_csv(source_bytes(), **kwargs)
-        # usecols gives the columns in file order; the time column may follow the signal.
-        return frame.iloc[:, [sorted(indices).index(index) for index in indices]]
-
+    reader = _column_reader(source, sep, decimal, data_start, comment, other_comment)
     sample_text = "\n".join(lines[data_start:data_start + _SAMPLE_LINES])
     try:
         with warnings.catch_warnings():
@@ -179,24 +196,67 @@ def _text_table(name, head, path, tail=b"", tidied=None):
     # A plain numeric file read whole is parsed once: when the sample holds every data line
     # and the reader would split and convert them alike, the sample is the data. The first
     # row must be full: pandas takes the number of columns from it.
-    whole = (path is None or len(head) < _SNIFF_BYTES) and len(lines) - data_start <= _SAMPLE_LINES
-    complete = (whole and plain and exact_text and other_comment is None
+    whole = not source.cut and len(lines) - data_start <= _SAMPLE_LINES
+    complete = (whole and plain and source.exact and other_comment is None
                 and sample.shape[0] > 0 and not np.isnan(sample.iat[0, -1])
-                and _lines_alike(text, lines[:data_start], sample_text))
+                and _lines_alike(source.text, lines[:data_start], sample_text))
     table = _Table(name, names, sample, reader, notes, complete=complete)
     table.clock, table.transposed, table.decimal = clock, transposed, decimal
     table.token_lines, table.sep = lines[data_start:data_start + 2000], sep
     return table
 
 
-def _rewritten_layout(name, lines, path, cut):
-    """(utf-8 text, notes) for an export layout that :data:`LAYOUTS` rewrites, else None;
-    ``cut`` says that ``lines`` are the first of a longer file at ``path``."""
-    layout = recognised_layout(lines)
+def _content_lines(lines):
+    """([(line number, stripped line)] of the first 200 lines that are neither blank nor
+    comments, the comment characters seen)."""
+    comment_chars = set()
+    content = []
+    for number, line in enumerate(lines):
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped[0] in "#%":
+            comment_chars.add(stripped[0])
+            continue
+        content.append((number, stripped))
+        if len(content) >= 200:
+            break
+    return content, comment_chars
+
+
+def _column_reader(source, sep, decimal, data_start, comment, other_comment):
+    """``reader(indices, nrows=None, as_text=False)``: the chosen 0-based columns of the
+    data rows as a DataFrame, in the order asked, by pandas' C parser."""
+    def reader(indices, nrows=None, as_text=False):
+        kwargs = dict(
+            sep=r"\s+" if sep is None else sep, decimal=decimal, header=None,
+            skiprows=_skip_rows(data_start, source.lines, other_comment),
+            usecols=list(indices), comment=comment, skip_blank_lines=True,
+            encoding=source.encoding, engine="c", nrows=nrows, quotechar='"',
+            skipinitialspace=sep is not None,
+        )
+        if as_text:
+            kwargs["dtype"] = str
+            kwargs["keep_default_na"] = False
+        else:
+            kwargs["dtype"] = np.float64
+        if sep is None:
+            kwargs.pop("skipinitialspace")
+        data = io.BytesIO(source.head) if source.path is None else source.path
+        frame = pd.read_csv(data, **kwargs)
+        # usecols gives the columns in file order; the time column may follow the signal.
+        return frame.iloc[:, [sorted(indices).index(index) for index in indices]]
+    return reader
+
+
+def _rewritten_layout(source):
+    """(utf-8 text, notes) for an export layout that :data:`LAYOUTS` rewrites, else None."""
+    layout = recognised_layout(source.lines)
     if layout is None or layout.rewrite is None:
         return None
-    if path is not None and cut:
-        lines = _decode(_read_whole(name, path))[0].splitlines()
+    lines = source.lines
+    if source.cut:
+        lines = _decode(_read_whole(source.name, source.path))[0].splitlines()
     rewritten = layout.rewrite(lines)
     if rewritten is None:
         return None
@@ -308,16 +368,16 @@ def _read_columns(table, indices):
                 row = int(np.flatnonzero((odd if odd.any() else bad).values)[0])
                 first = str(values[clockish].iloc[0])
                 raise InputError(
-                    f"'{_shown(values.iloc[row])}' in the clock-time column {_describe(table, index)} "
-                    f"of {table.name} (data row {row + 1}) is not a clock time like the "
-                    f"others ('{first}'). Fix or delete that row, or choose another time "
-                    "column with `time_col` or give `rate=HZ`.") from None
+                    f"'{_shown(values.iloc[row])}' in the clock-time column "
+                    f"{_describe(table, index)} of {table.name} (data row {row + 1}) is not a "
+                    f"clock time like the others ('{first}'). Fix or delete that row, or "
+                    "choose another time column with `time_col` or give `rate=HZ`.") from None
             if bad.any():
                 row = int(np.flatnonzero(bad.values)[0])
                 raise InputError(
-                    f"text '{_shown(values.iloc[row])}' in numeric column {_describe(table, index)} of "
-                    f"{table.name} (data row {row + 1}). Fix or delete that row, or start it "
-                    "with # to make it a comment.") from None
+                    f"text '{_shown(values.iloc[row])}' in numeric column "
+                    f"{_describe(table, index)} of {table.name} (data row {row + 1}). Fix or "
+                    "delete that row, or start it with # to make it a comment.") from None
         columns = ", ".join(_describe(table, index) for index in indices)
         raise InputError(f"cannot read the columns {columns} of {table.name} as numbers "
                          f"({str(exc).splitlines()[0]}). Check that every row has the same "
