@@ -105,9 +105,9 @@ def test_a_sparse_file_of_2_gb_is_refused_at_once(tmp_path):
         handle.truncate(2 << 30)  # sparse: no disk is used
     result = _run_bounded([str(path)])
     assert result["code"] == 1
-    assert result["err"] == [f"Error: {path} is not read: the file is 2 GiB or more, past the "
-                             "1 GiB that no record reaches. Check that it is the record, or "
-                             "cut it into parts."]
+    assert result["err"] == [f"Error: {path} is not read: the file (2 GiB or more) passes "
+                             "the 1 GiB that no record reaches. Check that it is the record, "
+                             "or cut it into parts."]
 
 
 def test_a_csv_padded_with_nul_bytes_to_2_gb_is_refused(tmp_path):
@@ -116,7 +116,8 @@ def test_a_csv_padded_with_nul_bytes_to_2_gb_is_refused(tmp_path):
     with open(path, "r+b") as handle:
         handle.truncate(2 << 30)
     result = _run_bounded([str(path)])
-    assert result["code"] == 1 and "past the 1 GiB" in result["err"][0]
+    assert result["code"] == 1
+    assert "the file (2 GiB or more) passes the 1 GiB" in result["err"][0]
 
 
 def test_endless_nul_bytes_on_stdin_are_refused():
@@ -202,8 +203,8 @@ def test_a_huge_shared_string_is_refused_before_it_is_read(tmp_path):
     assert os.path.getsize(path) < 1 << 20  # it compresses to almost nothing
     result = _run_bounded([str(path)])
     assert result["code"] == 1
-    assert result["err"][0].startswith(f"Error: {path} is not read: its text (shared strings) "
-                                       "is 40 MiB or more, past the 32 MiB")
+    assert result["err"][0].startswith(f"Error: {path} is not read: the text of its cells "
+                                       "(40 MiB or more) passes the 32 MiB")
 
 
 def test_sheets_past_the_limit_are_refused(tmp_path, monkeypatch):
@@ -225,3 +226,22 @@ def test_empty_sheets_before_the_data_are_not_each_parsed(tmp_path, monkeypatch)
     check(record)
     assert parsed == ["data"]
     assert "the first sheet, 'empty 0', holds no data" in record.notes
+
+
+def test_cells_past_the_limit_are_refused_before_they_are_read(tmp_path, monkeypatch):
+    monkeypatch.setattr("mcfit.io.excel.MAX_SHEET_BYTES", 10_000)
+    path = _workbook(tmp_path / "cells.xlsx")  # about 30 kB of sheet XML
+    with pytest.raises(InputError, match=r"cells.xlsx is not read: the cell data of its sheets "
+                                         r"\(0.0\d+ MiB or more\) passes the 0.00954 MiB"):
+        read_record(path)
+
+
+def test_sheets_past_the_limit_are_refused_in_legacy_xls(tmp_path, monkeypatch):
+    xlwt = pytest.importorskip("xlwt")
+    monkeypatch.setattr("mcfit.io.excel.MAX_SHEETS", 2)
+    book = xlwt.Workbook()
+    for k in range(3):
+        book.add_sheet(f"s{k}").write(0, 0, 1.0)
+    book.save(str(tmp_path / "old.xls"))
+    with pytest.raises(InputError, match=r"old.xls is not read: it holds 3 sheets, past the 2"):
+        read_record(tmp_path / "old.xls")

@@ -143,10 +143,10 @@ def _check_workbook_parts(path, name):
         raise _too_many_sheets(name, len(sheets))
     strings = sum(p.file_size for p in parts if p.filename.lower() == "xl/sharedstrings.xml")
     if strings > MAX_SHARED_STRING_BYTES:
-        raise too_large(name, "its text (shared strings)", strings, MAX_SHARED_STRING_BYTES)
+        raise too_large(name, "the text of its cells", strings, MAX_SHARED_STRING_BYTES)
     cells = sum(p.file_size for p in sheets)
     if cells > MAX_SHEET_BYTES:
-        raise too_large(name, "the cells of its sheets", cells, MAX_SHEET_BYTES)
+        raise too_large(name, "the cell data of its sheets", cells, MAX_SHEET_BYTES)
 
 
 def _too_many_sheets(name, count):

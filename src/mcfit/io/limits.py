@@ -25,7 +25,7 @@ def _size(n):
 
 def too_large(name, what, size, limit):
     """The error for ``what`` of ``size`` bytes past ``limit``."""
-    return InputError(f"{name} is not read: {what} is {_size(size)} or more, past the "
+    return InputError(f"{name} is not read: {what} ({_size(size)} or more) passes the "
                       f"{_size(limit)} that no record reaches. Check that it is the record, or "
                       "cut it into parts.")
 
