@@ -113,6 +113,50 @@ def pipe_table(path: Path) -> None:
     path.write_text("\n".join(lines) + "\n")
 
 
+def simulated(options: str) -> pd.DataFrame:
+    """The record ``mcfit simulate`` writes with ``options``, as a frame (t, x)."""
+    with tempfile_csv() as name:
+        simulate(name, options)
+        return pd.read_csv(name)
+
+
+def labview_lvm(path: Path) -> None:
+    """A LabVIEW measurement file: two header blocks, X_Value, decimal commas, and the
+    empty Comment column LabVIEW adds (a pendulum's angle sensor at 50 Hz)."""
+    run = simulated("--a 0.2 --b 0.03 --y0 0.6 --period 1.4 --duration 30 --rate 50 "
+                    "--noise 0.001 --seed 10")
+    block = ("LabVIEW Measurement\t\nWriter_Version\t2\nSeparator\tTab\nDecimal_Separator\t,"
+             "\nDate\t2021/04/16\nTime\t11:27:25,437502\n***End_of_Header***\t\n\n"
+             f"Channels\t1\t\nSamples\t{run.shape[0]}\t\nX_Dimension\tTime\t\n"
+             "Delta_X\t0,020000\t\n***End_of_Header***\t\n")
+    rows = "".join(f"{t:.6f}\t{x:.6f}\t\n".replace(".", ",") for t, x in zip(run["t"], run["x"]))
+    path.write_text(block + "X_Value\tAngle\tComment\n" + rows)
+
+
+def logger_pro(path: Path) -> None:
+    """A Vernier Logger Pro text export: a header block, names, short names and units
+    rows, and the velocity column it computes (a cart on springs at 20 Hz)."""
+    run = simulated("--b 0.08 --c 0.002 --y0 0.12 --period 1.2 --duration 40 --rate 20 "
+                    "--noise 0.0005 --seed 11")
+    velocity = np.gradient(run["x"], run["t"])
+    head = ("Vernier Format 2\nsprings.cmbl 4/16/2021 11:27:25 .\nLatest\n"
+            "Time\tPosition\tVelocity\nt\tx\tv\ns\tm\tm/s\n\n")
+    rows = "".join(f"{t:.2f}\t{x:.5f}\t{v:.4f}\n"
+                   for t, x, v in zip(run["t"], run["x"], velocity))
+    path.write_text(head + rows)
+
+
+def tracker(path: Path) -> None:
+    """A Tracker (Open Source Physics) export of a video at 30 frames/s: a "mass A" line
+    above the header and times printed to 3 significant figures."""
+    run = simulated("--a 0.5 --y0 0.25 --period 1.5 --duration 30 --rate 30 "
+                    "--noise 0.0008 --seed 12")
+    times = [np.format_float_positional(v, precision=3, unique=False, fractional=False)
+             .rstrip(".") for v in run["t"]]
+    rows = "".join(f"{t}\t{x:.4f}\n" for t, x in zip(times, run["x"]))
+    path.write_text("mass A\nt\tx\n" + rows)
+
+
 def tempfile_csv():
     """A context giving the name of a CSV file in a temporary folder."""
     import contextlib
@@ -146,6 +190,9 @@ def main() -> None:
     ni_waveform(HERE / "ni_waveform.csv")
     phyphox_xls(HERE / "phyphox_gyroscope.xls")
     pipe_table(HERE / "pipe_table.md")
+    labview_lvm(HERE / "labview.lvm")
+    logger_pro(HERE / "logger_pro.txt")
+    tracker(HERE / "tracker.txt")
 
 
 if __name__ == "__main__":

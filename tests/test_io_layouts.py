@@ -37,3 +37,13 @@ def test_the_run_label_of_an_entry_splits_runs(tmp_path):
               f"{0.1 * i:.1f},{(-1) ** i * 0.97 ** i:.4f}" for i in range(100)]
     path.write_text("\n".join(lines) + "\n")
     assert [r.run for r in read_records(path)] == ["Run 3", "Run 8"]
+
+
+@pytest.mark.parametrize("name, model", [
+    ("ni_waveform.csv", "b"), ("phyphox_gyroscope.xls", "ab"), ("pipe_table.md", "b"),
+    ("labview.lvm", "ab"), ("logger_pro.txt", "bc"), ("tracker.txt", "a"),
+])
+def test_each_export_sample_gives_the_damping_it_was_simulated_with(name, model):
+    # make_samples.py simulates each with the terms named here.
+    import mcfit
+    assert mcfit.analyse_file(str(SAMPLES / name)).fit.model == model

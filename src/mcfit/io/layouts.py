@@ -125,11 +125,13 @@ LAYOUTS = (
                  rewrite=_pipe_table_rows),
     ExportLayout("PASCO Capstone runs side by side", sample="capstone_runs.csv",
                  run_label=re.compile(r"\brun\s*#?\s*(\d+)\s*$", re.IGNORECASE)),
-    ExportLayout("LabVIEW measurement file (.lvm)", time_names=("x_value",)),
-    ExportLayout("Vernier Logger Pro", time_names=("latest: time",)),
+    ExportLayout("LabVIEW measurement file (.lvm)", sample="labview.lvm",
+                 time_names=("x_value",)),
+    ExportLayout("Vernier Logger Pro", sample="logger_pro.txt", time_names=("latest: time",)),
     # A sensor's x, y and z columns: the one that oscillates most is the signal (columns).
     ExportLayout("phyphox (Excel .xls)", sample="phyphox_gyroscope.xls"),
-    ExportLayout("Tracker (Open Source Physics)"),
+    # Times printed to 3 significant figures are rebuilt as even steps (times).
+    ExportLayout("Tracker (Open Source Physics)", sample="tracker.txt"),
     ExportLayout("serial logger (Arduino and others)"),
 )
 
