@@ -157,6 +157,22 @@ def tracker(path: Path) -> None:
     path.write_text("mass A\nt\tx\n" + rows)
 
 
+def serial_logs(monitor: Path, logger: Path) -> None:
+    """An Arduino reading a potentiometer on a pendulum (10-bit counts, 50 Hz): as the
+    IDE's serial monitor shows it with timestamps (``16:04:31.273 -> 812``), and as a
+    sketch prints it with its own millis() time."""
+    from datetime import datetime, timedelta
+
+    run = simulated("--b 0.1 --c 4 --y0 300 --period 1.3 --duration 30 --rate 50 "
+                    "--noise 1 --seed 13")
+    counts = np.round(512 + run["x"]).astype(int)
+    start = datetime(2021, 4, 16, 16, 4, 31, 273000)
+    monitor.write_text("".join(f"{start + timedelta(seconds=float(t)):%H:%M:%S.%f}"[:-3]
+                               + f" -> {c}\n" for t, c in zip(run["t"], counts)))
+    logger.write_text("millis,adc\n" + "".join(f"{4312 + round(1000 * t)},{c}\n"
+                                                for t, c in zip(run["t"], counts)))
+
+
 def tempfile_csv():
     """A context giving the name of a CSV file in a temporary folder."""
     import contextlib
@@ -193,6 +209,7 @@ def main() -> None:
     labview_lvm(HERE / "labview.lvm")
     logger_pro(HERE / "logger_pro.txt")
     tracker(HERE / "tracker.txt")
+    serial_logs(HERE / "serial_monitor.txt", HERE / "serial_logger.csv")
 
 
 if __name__ == "__main__":

@@ -111,3 +111,47 @@ def test_a_text_file_that_is_not_a_table_says_so(tmp_path):
     with pytest.raises(InputError, match=r"notes.md is not a table of numbers: 2 of its 61 "
                                          r"lines are numbers \(it reads as prose or markup\)"):
         read_record(path)
+
+
+def _counts(n=600, step=0.02):
+    t = np.arange(n) * step
+    return t, np.round(512 + 300 * np.exp(-0.1 * t) * np.cos(2 * np.pi * t / 1.3)).astype(int)
+
+
+@pytest.mark.parametrize("header", [None, "angle"])
+def test_the_arduino_serial_monitor_with_timestamps(tmp_path, header):
+    t, counts = _counts()
+    start = datetime(2021, 4, 16, 23, 59, 55, 273000)  # across midnight
+    stamps = [f"{start + timedelta(seconds=float(a)):%H:%M:%S.%f}"[:-3] for a in t]
+    lines = [f"{stamps[0]} -> {header}"] if header else []
+    lines += [f"{s} -> {c}" for s, c in zip(stamps, counts)]
+    path = tmp_path / "monitor.txt"
+    path.write_text("\n".join(lines) + "\n")
+    record = read_record(path)
+    np.testing.assert_allclose(record.t, t, atol=1e-9)
+    np.testing.assert_array_equal(record.x, counts)
+    assert record.signal_column == (header or "value")
+    assert "Arduino serial monitor log: the timestamps before -> read as clock times" in (
+        record.notes)
+
+
+def test_several_values_on_a_serial_monitor_line(tmp_path):
+    t, counts = _counts()
+    path = tmp_path / "monitor.txt"
+    path.write_text("".join(f"16:04:{31 + a:06.3f} -> {c},{1023 - c}\n"
+                            for a, c in zip(t, counts)))
+    record = read_record(path, signal_col="value 2")
+    np.testing.assert_array_equal(record.x, 1023 - counts)
+
+
+@pytest.mark.parametrize("label, scale", [("millis", 1e3), ("micros", 1e6)])
+def test_an_arduino_time_column_is_in_its_own_unit(tmp_path, label, scale):
+    t, counts = _counts()
+    path = tmp_path / "log.csv"
+    path.write_text(f"adc,{label}\n" + "".join(f"{c},{round(a * scale) + 4312}\n"
+                                                for a, c in zip(t, counts)))
+    record = read_record(path)
+    assert record.time_column == label and record.time_unit == "s"
+    np.testing.assert_allclose(np.diff(record.t), 0.02, rtol=1e-9)
+    assert f"time converted from {'ms' if label == 'millis' else 'us'} to seconds" in (
+        record.notes)

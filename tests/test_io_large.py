@@ -245,3 +245,14 @@ def test_sheets_past_the_limit_are_refused_in_legacy_xls(tmp_path, monkeypatch):
     book.save(str(tmp_path / "old.xls"))
     with pytest.raises(InputError, match=r"old.xls is not read: it holds 3 sheets, past the 2"):
         read_record(tmp_path / "old.xls")
+
+
+def test_the_cells_of_an_ods_count_too(tmp_path, monkeypatch):
+    pytest.importorskip("odf")
+    import pandas as pd
+    path = tmp_path / "run.ods"
+    pd.DataFrame({"t": T, "x": X}).to_excel(path, index=False, engine="odf")
+    check(read_record(path))
+    monkeypatch.setattr("mcfit.io.excel.MAX_SHEET_BYTES", 1000)
+    with pytest.raises(InputError, match=r"run.ods is not read: the cell data of its sheets"):
+        read_record(path)

@@ -42,6 +42,7 @@ def test_the_run_label_of_an_entry_splits_runs(tmp_path):
 @pytest.mark.parametrize("name, model", [
     ("ni_waveform.csv", "b"), ("phyphox_gyroscope.xls", "ab"), ("pipe_table.md", "b"),
     ("labview.lvm", "ab"), ("logger_pro.txt", "bc"), ("tracker.txt", "a"),
+    ("serial_monitor.txt", "bc"), ("serial_logger.csv", "bc"),
 ])
 def test_each_export_sample_gives_the_damping_it_was_simulated_with(name, model):
     # make_samples.py simulates each with the terms named here.

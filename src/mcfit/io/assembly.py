@@ -8,7 +8,7 @@ from mcfit.errors import InputError
 from mcfit.io.columns import _Run, _axis_siblings, _chosen_columns, _resolve_column
 from mcfit.io.table import _describe, _read_columns
 from mcfit.io.times import _repair_times, _timestamp_problem
-from mcfit.io.tokens import _CYCLE_NAMES, _SECONDS_PER_UNIT, _base_name
+from mcfit.io.tokens import _CYCLE_NAMES, _SECONDS_PER_UNIT, _base_name, _time_unit
 from mcfit.record import Record, detect_kind
 
 
@@ -51,7 +51,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         signal_unit = "rad"
         signal_label = f"angle from {signal_label}, {table.names[y_index]}"
     t, x = _trimmed(table, t, x, time_index, signal_index, notes)
-    time_unit = _base_name(table.names[time_index])[1] if time_index is not None else "s"
+    time_unit = _time_unit(table.names[time_index]) if time_index is not None else "s"
 
     if rate is not None:
         t = _time_from_rate(table, x.size, rate, ignored, notes)

@@ -52,7 +52,7 @@ def _excel_table(path, name, sheet, suffix):
         raise InputError(f"{name} is a password-protected (encrypted) workbook or an old "
                          ".xls renamed .xlsx, which mcfit cannot open. In Excel remove the "
                          "password and save as .xlsx, or export CSV.")
-    if engine == "openpyxl":
+    if engine == "openpyxl" or suffix == ".ods":
         _check_workbook_parts(path, name)
     try:
         book = pd.ExcelFile(path, engine=engine)
@@ -137,9 +137,10 @@ def _check_workbook_parts(path, name):
             parts = archive.infolist()
     except (zipfile.BadZipFile, OSError):
         return  # the engine says what is wrong
-    sheets = [p for p in parts
-              if p.filename.startswith("xl/worksheets/") and p.filename.endswith(".xml")]
-    if len(sheets) > MAX_SHEETS:
+    # An .xlsx keeps a part per sheet; an .ods keeps every sheet in content.xml.
+    sheets = [p for p in parts if p.filename == "content.xml" or (
+        p.filename.startswith("xl/worksheets/") and p.filename.endswith(".xml"))]
+    if len(sheets) > MAX_SHEETS:  # an .xlsx's: an .ods's are counted once it is open
         raise _too_many_sheets(name, len(sheets))
     strings = sum(p.file_size for p in parts if p.filename.lower() == "xl/sharedstrings.xml")
     if strings > MAX_SHARED_STRING_BYTES:

@@ -33,6 +33,9 @@ class ExportLayout:
         A file of ``sample_data/`` written in this layout.
     time_names : tuple of str
         Column labels (lower case, unit left out) that name the time in this export.
+    time_units : tuple of (str, str)
+        Time labels whose unit the program implies, with that unit (Arduino's
+        ``millis`` is in ms); they name the time too.
     run_label : re.Pattern or None
         A column-label suffix numbering runs side by side (group 1 is the number).
     recognise : callable or None
@@ -45,6 +48,7 @@ class ExportLayout:
     name: str
     sample: str | None = None
     time_names: tuple[str, ...] = ()
+    time_units: tuple[tuple[str, str], ...] = ()
     run_label: re.Pattern | None = None
     recognise: Callable[[list[str]], bool] | None = None
     rewrite: Callable[[list[str]], tuple[list[str], list[str]]] | None = None
@@ -118,6 +122,37 @@ def _pipe_table_rows(lines):
     return out, ["markdown pipe table: cells read between the | marks"]
 
 
+_SERIAL_MONITOR = re.compile(r"^(\d{1,2}:\d{2}:\d{2}\.\d{3}) -> ?(.*)$")
+
+
+def _is_serial_monitor(lines):
+    """The Arduino IDE's serial monitor with timestamps: ``16:04:31.273 -> 512``."""
+    content = [line.strip() for line in lines if line.strip()][:5]
+    return len(content) >= 3 and all(_SERIAL_MONITOR.match(line) for line in content)
+
+
+def _serial_monitor_rows(lines):
+    """(lines, notes): the clock time and the values printed after ``->`` of each line,
+    tab-separated under a header (the sketch's own, if it printed one first)."""
+    rows = []
+    for line in lines:
+        match = _SERIAL_MONITOR.match(line.strip())
+        values = re.split(r"[,;\s]+", match.group(2).strip()) if match else []
+        if values and values[0]:
+            rows.append((match.group(1), values))
+    if not rows:
+        return None
+    names = rows[0][1] if not any(c.isdigit() for c in "".join(rows[0][1])) else None
+    if names is not None:
+        rows = rows[1:]
+    width = max(len(values) for _, values in rows)
+    if names is None:
+        names = ["value"] if width == 1 else [f"value {k + 1}" for k in range(width)]
+    out = ["\t".join(["clock"] + names)]
+    out += ["\t".join([stamp] + values) for stamp, values in rows]
+    return out, ["Arduino serial monitor log: the timestamps before -> read as clock times"]
+
+
 LAYOUTS = (
     ExportLayout("NI LabVIEW waveform to spreadsheet", sample="ni_waveform.csv",
                  recognise=_is_ni_waveform, rewrite=_ni_waveform_rows),
@@ -132,7 +167,11 @@ LAYOUTS = (
     ExportLayout("phyphox (Excel .xls)", sample="phyphox_gyroscope.xls"),
     # Times printed to 3 significant figures are rebuilt as even steps (times).
     ExportLayout("Tracker (Open Source Physics)", sample="tracker.txt"),
-    ExportLayout("serial logger (Arduino and others)"),
+    ExportLayout("Arduino serial monitor with timestamps", sample="serial_monitor.txt",
+                 recognise=_is_serial_monitor, rewrite=_serial_monitor_rows),
+    # A sketch's own time column, from millis() or micros().
+    ExportLayout("serial logger (Arduino and others)", sample="serial_logger.csv",
+                 time_units=(("millis", "ms"), ("micros", "us"))),
 )
 
 

@@ -12,7 +12,10 @@ from mcfit.io.layouts import LAYOUTS
 _TIME_NAMES = {"time", "t", "times", "tempo", "zeit", "temps", "tiempo", "seconds", "sec",
                "timestamp", "stamp", "elapsed", "elapsed time", "time elapsed", "time_elapsed",
                "elapsed_time", "clock", "time stamp", "time_s",
-               *(name for layout in LAYOUTS for name in layout.time_names)}
+               *(name for layout in LAYOUTS for name in layout.time_names),
+               *(name for layout in LAYOUTS for name, _ in layout.time_units)}
+# Time labels whose unit the program that writes them implies.
+_IMPLIED_TIME_UNITS = {name: unit for layout in LAYOUTS for name, unit in layout.time_units}
 _CYCLE_NAMES = {"n", "cycle", "cycles", "cycle number", "swing", "swings", "period number",
                 "peak", "peak number", "k", "index"}
 _NUMBER = re.compile(r"^[+-]?(\d+([.,]\d*)?|[.,]\d+)([eE][+-]?\d+)?$")
@@ -74,6 +77,12 @@ def _base_name(label):
         return (f"{match.group(1)} {match.group(3)}".strip().lower(),
                 match.group(2).strip())
     return label.strip().lower(), None
+
+
+def _time_unit(label):
+    """The unit of a time column: as its header names it, or as its name implies."""
+    base, unit = _base_name(label)
+    return unit if unit is not None else _IMPLIED_TIME_UNITS.get(base)
 
 
 _RUN_SUFFIX = re.compile(r"\s*\brun\s*#?\s*\d+$")
