@@ -138,10 +138,12 @@ def test_the_arduino_serial_monitor_with_timestamps(tmp_path, header):
 def test_several_values_on_a_serial_monitor_line(tmp_path):
     t, counts = _counts()
     path = tmp_path / "monitor.txt"
-    path.write_text("".join(f"16:04:{31 + a:06.3f} -> {c},{1023 - c}\n"
-                            for a, c in zip(t, counts)))
+    lines = [f"16:04:{31 + a:06.3f} -> {c},{1023 - c}" for a, c in zip(t, counts)]
+    lines.insert(100, "ets Jul 29 2019 12:21:46 (a board reset message)")
+    path.write_text("\n".join(lines) + "\n")
     record = read_record(path, signal_col="value 2")
     np.testing.assert_array_equal(record.x, 1023 - counts)
+    assert "1 line of the log without a timestamped value skipped" in record.notes
 
 
 @pytest.mark.parametrize("label, scale", [("millis", 1e3), ("micros", 1e6)])

@@ -84,7 +84,7 @@ def _ni_waveform_rows(lines):
         steps = {float(f) for f in step_fields[1:] if f}
     except ValueError:
         return None
-    if len(steps) != 1 or not min(steps) > 0 or len(starts) < 5:
+    if sep is None or len(steps) != 1 or not min(steps) > 0 or len(starts) < 5:
         return None
     step = steps.pop()
     header_at = starts[3]
@@ -93,11 +93,12 @@ def _ni_waveform_rows(lines):
     out = [sep.join(["time (s)"] + header[has_time:])]
     rows = (line for line in lines[header_at + 1:] if line.strip())
     for i, line in enumerate(rows):
-        values = line.split(sep, 1)[1] if has_time else line
+        values = line.split(sep, 1)[-1] if has_time else line
         out.append(f"{i * step!r}{sep}{values}")
     t0 = " ".join(t0_fields[1].split()) if len(t0_fields) > 1 else "?"
     return out, [f"NI LabVIEW waveform export: time built from its delta t, {step:g} s "
                  f"({1 / step:g} Hz), as seconds after t0 = {t0}"]
+
 
 _PIPE_ALIGNMENT = re.compile(r"^\|?(\s*:?-+:?\s*\|)*\s*:?-+:?\s*\|?$")
 
@@ -134,12 +135,14 @@ def _is_serial_monitor(lines):
 def _serial_monitor_rows(lines):
     """(lines, notes): the clock time and the values printed after ``->`` of each line,
     tab-separated under a header (the sketch's own, if it printed one first)."""
-    rows = []
+    rows, other = [], 0
     for line in lines:
         match = _SERIAL_MONITOR.match(line.strip())
         values = re.split(r"[,;\s]+", match.group(2).strip()) if match else []
         if values and values[0]:
             rows.append((match.group(1), values))
+        else:
+            other += bool(line.strip())
     if not rows:
         return None
     names = rows[0][1] if not any(c.isdigit() for c in "".join(rows[0][1])) else None
@@ -150,7 +153,11 @@ def _serial_monitor_rows(lines):
         names = ["value"] if width == 1 else [f"value {k + 1}" for k in range(width)]
     out = ["\t".join(["clock"] + names)]
     out += ["\t".join([stamp] + values) for stamp, values in rows]
-    return out, ["Arduino serial monitor log: the timestamps before -> read as clock times"]
+    notes = ["Arduino serial monitor log: the timestamps before -> read as clock times"]
+    if other:
+        lines_skipped = f"{other} line" + ("s" if other > 1 else "")
+        notes.append(f"{lines_skipped} of the log without a timestamped value skipped")
+    return out, notes
 
 
 LAYOUTS = (
