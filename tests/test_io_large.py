@@ -151,9 +151,10 @@ def _workbook(path, empty_sheets=0):
     return path
 
 
-def _workbook_with_shared_string(path, text):
-    """A minimal .xlsx whose one sheet holds the rows and, in C1, ``text`` as a shared
-    string (as Excel stores text; openpyxl writes no string past Excel's 32,767 characters)."""
+def _minimal_xlsx(path, text="a note", empty_sheets=0):
+    """A minimal .xlsx: ``empty_sheets`` empty sheets, then a sheet holding the rows and,
+    in C1, ``text`` as a shared string (as Excel stores text; openpyxl writes no string
+    past Excel's 32,767 characters, and writes 10,000 sheets slowly)."""
     import zipfile
     main = "http://schemas.openxmlformats.org/spreadsheetml/2006/main"
     rel = "http://schemas.openxmlformats.org/officeDocument/2006/relationships"
@@ -162,32 +163,38 @@ def _workbook_with_shared_string(path, text):
             '<is><t>x</t></is></c><c r="C1" t="s"><v>0</v></c></row>']
     rows += [f'<row r="{i + 2}"><c r="A{i + 2}"><v>{t!r}</v></c><c r="B{i + 2}"><v>{x!r}</v>'
              '</c></row>' for i, (t, x) in enumerate(zip(T, X))]
+    sheets = [f'<worksheet xmlns="{main}"><sheetData/></worksheet>'] * empty_sheets
+    sheets.append(f'<worksheet xmlns="{main}"><sheetData>{"".join(rows)}</sheetData></worksheet>')
+    names = [f"empty {k}" for k in range(empty_sheets)] + ["data"]
     parts = {
         "[Content_Types].xml": (
             '<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types">'
             '<Default Extension="rels" ContentType="application/vnd.openxmlformats-package.'
             'relationships+xml"/><Default Extension="xml" ContentType="application/xml"/>'
             f'<Override PartName="/xl/workbook.xml" ContentType="{kinds}.sheet.main+xml"/>'
-            f'<Override PartName="/xl/worksheets/sheet1.xml" ContentType="{kinds}.worksheet'
-            f'+xml"/><Override PartName="/xl/sharedStrings.xml" ContentType="{kinds}.'
+            + "".join(f'<Override PartName="/xl/worksheets/sheet{k + 1}.xml" '
+                      f'ContentType="{kinds}.worksheet+xml"/>' for k in range(len(sheets)))
+            + f'<Override PartName="/xl/sharedStrings.xml" ContentType="{kinds}.'
             'sharedStrings+xml"/></Types>'),
         "_rels/.rels": (
             '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/'
             f'relationships"><Relationship Id="rId1" Type="{rel}/officeDocument" '
             'Target="xl/workbook.xml"/></Relationships>'),
         "xl/workbook.xml": (
-            f'<workbook xmlns="{main}" xmlns:r="{rel}"><sheets><sheet name="data" '
-            'sheetId="1" r:id="rId1"/></sheets></workbook>'),
+            f'<workbook xmlns="{main}" xmlns:r="{rel}"><sheets>'
+            + "".join(f'<sheet name="{name}" sheetId="{k + 1}" r:id="rId{k + 1}"/>'
+                      for k, name in enumerate(names)) + "</sheets></workbook>"),
         "xl/_rels/workbook.xml.rels": (
             '<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/'
-            f'relationships"><Relationship Id="rId1" Type="{rel}/worksheet" '
-            f'Target="worksheets/sheet1.xml"/><Relationship Id="rId2" Type="{rel}/'
-            'sharedStrings" Target="sharedStrings.xml"/></Relationships>'),
-        "xl/worksheets/sheet1.xml": (
-            f'<worksheet xmlns="{main}"><sheetData>{"".join(rows)}</sheetData></worksheet>'),
+            'relationships">'
+            + "".join(f'<Relationship Id="rId{k + 1}" Type="{rel}/worksheet" '
+                      f'Target="worksheets/sheet{k + 1}.xml"/>' for k in range(len(sheets)))
+            + f'<Relationship Id="rId0" Type="{rel}/sharedStrings" '
+            'Target="sharedStrings.xml"/></Relationships>'),
         "xl/sharedStrings.xml": (
             f'<sst xmlns="{main}" count="1" uniqueCount="1"><si><t>{text}</t></si></sst>'),
     }
+    parts.update({f"xl/worksheets/sheet{k + 1}.xml": sheet for k, sheet in enumerate(sheets)})
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as archive:
         for name, content in parts.items():
             archive.writestr(name, content)
@@ -195,16 +202,28 @@ def _workbook_with_shared_string(path, text):
 
 
 def test_a_small_shared_string_workbook_reads(tmp_path):
-    check(read_record(_workbook_with_shared_string(tmp_path / "note.xlsx", "a note")))
+    check(read_record(_minimal_xlsx(tmp_path / "note.xlsx")))
+    record = read_record(_minimal_xlsx(tmp_path / "later.xlsx", empty_sheets=3))
+    check(record)
+    assert "the first sheet, 'empty 0', holds no data" in record.notes
 
 
 def test_a_huge_shared_string_is_refused_before_it_is_read(tmp_path):
-    path = _workbook_with_shared_string(tmp_path / "string.xlsx", "y" * (40 << 20))
+    path = _minimal_xlsx(tmp_path / "string.xlsx", "y" * (40 << 20))
     assert os.path.getsize(path) < 1 << 20  # it compresses to almost nothing
     result = _run_bounded([str(path)])
     assert result["code"] == 1
     assert result["err"][0].startswith(f"Error: {path} is not read: the text of its cells "
                                        "(40 MiB or more) passes the 32 MiB")
+
+
+def test_ten_thousand_empty_sheets_are_refused_in_one_line(tmp_path):
+    path = _minimal_xlsx(tmp_path / "sheets.xlsx", empty_sheets=10_000)
+    result = _run_bounded([str(path)])
+    assert result["code"] == 1
+    assert result["err"] == [f"Error: {path} is not read: it holds 10001 sheets, past the "
+                             "1000 that no record reaches. Copy the sheet with the data to a "
+                             "workbook of its own, or export it as CSV."]
 
 
 def test_sheets_past_the_limit_are_refused(tmp_path, monkeypatch):
