@@ -275,3 +275,10 @@ def test_the_cells_of_an_ods_count_too(tmp_path, monkeypatch):
     monkeypatch.setattr("mcfit.io.excel.MAX_SHEET_BYTES", 1000)
     with pytest.raises(InputError, match=r"run.ods is not read: the cell data of its sheets"):
         read_record(path)
+
+
+def test_without_calamine_the_data_sheet_is_found_by_parsing(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "python_calamine", None)
+    record = read_record(_workbook(tmp_path / "later.xlsx", empty_sheets=3))
+    check(record)
+    assert "the first sheet, 'empty 0', holds no data" in record.notes

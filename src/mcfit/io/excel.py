@@ -74,6 +74,10 @@ def _excel_table(path, name, sheet, suffix):
         else:
             # A first sheet of notes: the data are on the first sheet that holds numbers.
             sheet_name = _first_sheet_with_numbers(path, book.sheet_names)
+            if sheet_name is None:  # calamine refused the workbook: parse sheet by sheet
+                sheet_name = next((n for n in book.sheet_names if _numeric_rows(
+                    _read_sheet(book, n, sheet).itertuples(index=False, name=None)) >= 2),
+                                  book.sheet_names[0])
             raw = _read_sheet(book, sheet_name, sheet)
             if sheet_name != book.sheet_names[0]:
                 notes.append(f"the first sheet, '{book.sheet_names[0]}', holds no data")
@@ -114,17 +118,17 @@ _SCAN_ROWS = 10000
 
 def _first_sheet_with_numbers(path, sheet_names):
     """The first sheet with two rows holding a number in its first rows, else the first
-    sheet. Calamine reads a sheet's first rows in microseconds, so that many sheets of
-    notes or empty sheets before the data cost little."""
-    from python_calamine import CalamineWorkbook
+    sheet; None when calamine cannot read the workbook. Calamine reads a sheet's first
+    rows in microseconds, so that many sheets of notes or empty sheets cost little."""
     try:
+        from python_calamine import CalamineWorkbook
         book = CalamineWorkbook.from_path(str(path))
         for sheet_name in sheet_names:
             if _numeric_rows(book.get_sheet_by_name(sheet_name).to_python(
                     nrows=_SCAN_ROWS)) >= 2:
                 return sheet_name
-    except Exception:  # calamine refuses the workbook: the engine reads the first sheet
-        pass
+    except Exception:  # ImportError, or calamine's errors on a workbook it cannot read
+        return None
     return sheet_names[0]
 
 
