@@ -40,7 +40,7 @@ def _child(phase, path):
 
     import numpy as np
 
-    from mcfit.records import read_record
+    from mcfit.io import read_record
     from mcfit.turning import find_turning_points
     base = _rss_mb()
     if phase == "turning":

@@ -145,7 +145,7 @@ def _latin1_past_the_first_megabyte(tmp):
     path = _decay_record(tmp / "late.csv", b=0.001, duration=1500.0)
     text = path.read_bytes()
     cut = text.index(b"\n", 1_100_000) + 1
-    path.write_bytes(text[:cut] + "# réglage du zéro\n".encode("latin-1") + text[cut:])
+    path.write_bytes(text[:cut] + "réglage du zéro\n".encode("latin-1") + text[cut:])
     return [str(path)]
 
 

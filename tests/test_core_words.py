@@ -8,8 +8,9 @@ import pytest
 from mcfit.options import FLAGS, for_command_line
 
 SOURCE = Path(__file__).parents[1] / "src" / "mcfit"
-CORE = ["record.py", "records.py", "decay.py", "motion.py", "phase_plane.py", "hum.py",
-        "model_error.py", "analysis.py", "bounds.py", "api.py", "report.py",
+CORE = ["record.py", "decay.py", "motion.py", "phase_plane.py", "hum.py", "model_error.py",
+        "analysis.py", "bounds.py", "api.py", "report.py",
+        *(f"io/{p.name}" for p in sorted((SOURCE / "io").glob("*.py"))),
         *(f"fit/{p.name}" for p in (SOURCE / "fit").glob("*.py")),
         *(f"turning/{p.name}" for p in sorted((SOURCE / "turning").glob("*.py")))]
 

@@ -11,7 +11,7 @@ from mcfit.analysis import analyse_record
 from mcfit.errors import RecordError
 from mcfit.hum import peak_frequency
 from mcfit.motion import simulate_record
-from mcfit.records import Record
+from mcfit.io import Record
 from mcfit.turning import find_turning_points
 
 B = 0.1

@@ -14,7 +14,7 @@ from mcfit.analysis import analyse_record, fit_turning_points
 from mcfit.errors import McfitError
 from mcfit.model_error import LIMIT, averaged_law_bias
 from mcfit.motion import simulate_record
-from mcfit.records import Record, read_record
+from mcfit.io import Record, read_record
 from mcfit.turning import find_turning_points, refine
 
 CAPSTONE = Path(__file__).parents[1] / "sample_data" / "capstone_runs.csv"

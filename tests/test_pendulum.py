@@ -190,7 +190,7 @@ REAL = Path(__file__).resolve().parents[2] / "shared" / "realdata" / "pendulum_c
 def test_real_pendulum_keeps_its_air_drag_with_the_correction():
     """A cup pendulum released near 83 degrees: its fluid term is real drag."""
     from mcfit.analysis import analyse_record
-    from mcfit.records import read_record
+    from mcfit.io import read_record
 
     record = read_record(str(REAL / "trial1_rawdata.txt"), signal_col=2)
     plain = analyse_record(record)

@@ -23,7 +23,7 @@ from mcfit.cli import cli  # noqa: E402
 from mcfit.options import DEFAULT_PANELS, PANELS  # noqa: E402
 from mcfit.plots import record_view, report_figure  # noqa: E402
 from mcfit.plots.binning import binned_medians, binned_rates, full_periods  # noqa: E402
-from mcfit.records import read_records  # noqa: E402
+from mcfit.io import read_records  # noqa: E402
 
 ROOT = Path(__file__).parents[1]
 SAMPLES = sorted(p for p in (ROOT / "sample_data").iterdir() if p.suffix in (".csv", ".xlsx"))

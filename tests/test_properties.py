@@ -20,7 +20,7 @@ from hypothesis.extra import numpy as hnp
 from mcfit.analysis import analyse_record
 from mcfit.errors import McfitError
 from mcfit.fit import fit_decay
-from mcfit.records import Record, read_record
+from mcfit.io import Record, read_record
 
 SETTINGS = settings(max_examples=60, deadline=None,
                     suppress_health_check=[HealthCheck.function_scoped_fixture])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from mcfit.errors import InputError
-from mcfit.records import read_record
+from mcfit.io import read_record
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 
@@ -229,7 +229,7 @@ def test_event_driven_encoder_log_keeps_its_times():
     micros = np.floor(fine[change] * 1e6).astype(np.int64)
     text = "micros,count\n" + "".join(f"{a},{int(b)}\n" for a, b in zip(micros, counts[change]))
     record = read_record(write("encoder.txt", text))
-    check(record, micros.astype(float), counts[change])
+    check(record, micros * 1e-6, counts[change])  # micros() counts microseconds
     assert not any("`rate" in note for note in record.notes)
     assert any("event-driven" in note for note in record.notes)
 
@@ -340,11 +340,12 @@ def test_ods_workbook():
 
 
 def test_xls_without_its_engine_names_the_package(monkeypatch):
-    monkeypatch.setitem(sys.modules, "xlrd", None)  # as if xlrd were not installed
+    # A dependency, so only a broken install lacks it.
+    monkeypatch.setitem(sys.modules, "python_calamine", None)
     path = write("old.xls", b"\xd0\xcf\x11\xe0\xa1\xb1\x1a\xe1" + bytes(504))
     with pytest.raises(InputError, match="^reading .xls workbooks such as old.xls needs the "
-                                         "Python package xlrd: install it \\(pip install "
-                                         "xlrd\\)"):
+                                         "Python package python-calamine: install it "
+                                         "\\(pip install python-calamine\\)"):
         read_record(path)
 
 

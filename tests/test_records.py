@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from mcfit.errors import InputError, UsageError
-from mcfit.records import read_record
+from mcfit.io import read_record
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
 needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/realdata absent")

@@ -11,7 +11,7 @@ from mcfit.analysis import analyse_record
 from mcfit.decay import amplitude
 from mcfit.errors import RecordError
 from mcfit.motion import simulate_record
-from mcfit.records import Record
+from mcfit.io import Record
 from mcfit.turning import find_turning_points, turning_points_from_table
 
 REALDATA = Path(__file__).parents[2] / "shared" / "realdata"
@@ -231,7 +231,7 @@ def test_the_handbook_decay_recorded_past_its_coulomb_stop_is_fitted_up_to_it():
     "pendulum_cup/lab1_data.txt", "pendulum_cup/trial1_rawdata.txt",
     "spring_mass_disk/molla_durissima_discopieno_14.91945_0.2016_1.csv"])
 def test_real_records_start_free_and_have_no_floor(path):
-    from mcfit.records import read_record
+    from mcfit.io import read_record
     from mcfit.turning import turning_points_of
     points = turning_points_of(read_record(REALDATA / path))
     assert np.isnan(points.release_time)

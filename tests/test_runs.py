@@ -10,7 +10,7 @@ from click.testing import CliRunner
 
 from mcfit.cli import cli
 from mcfit.errors import UsageError
-from mcfit.records import read_record, read_records
+from mcfit.io import read_record, read_records
 
 PERIOD = 1.0
 RATE = 50.0
@@ -133,6 +133,10 @@ def test_repeated_time_and_signal_columns_are_runs(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     records = read_records(str(path))
     assert [r.run for r in records] == ["Run 1", "Run 2"]
+    np.testing.assert_allclose(records[1].x, np.round(second[1], 5))
+    # Named, the signal of each run is its own column of that name.
+    records = read_records(str(path), signal_col="x")
+    np.testing.assert_allclose(records[0].x, np.round(first[1], 5))
     np.testing.assert_allclose(records[1].x, np.round(second[1], 5))
 
 

@@ -394,7 +394,7 @@ needs_realdata = pytest.mark.skipif(not REALDATA.is_dir(), reason="../shared/rea
 
 @needs_realdata
 def test_real_pendulum_turning_points():
-    from mcfit.records import read_record
+    from mcfit.io import read_record
     from mcfit.turning import turning_points_of
     points = turning_points_of(read_record(REALDATA / "pendulum_cup" / "lab1_data.txt"))
     assert points.count > 130
@@ -406,7 +406,7 @@ def test_real_pendulum_turning_points():
 
 @needs_realdata
 def test_real_large_swing_period_depends_on_amplitude():
-    from mcfit.records import read_record
+    from mcfit.io import read_record
     from mcfit.turning import turning_points_of
     points = turning_points_of(read_record(REALDATA / "pendulum_cup" / "trial1_rawdata.txt"))
     assert points.count >= 17
@@ -422,7 +422,7 @@ def test_real_large_swing_period_depends_on_amplitude():
 @needs_realdata
 @pytest.mark.parametrize("run", [1, 2])
 def test_real_spring_mass(run):
-    from mcfit.records import read_record
+    from mcfit.io import read_record
     from mcfit.turning import turning_points_of
     name = f"molla_durissima_discopieno_14.91945_0.2016_{run}.csv"
     points = turning_points_of(read_record(REALDATA / "spring_mass_disk" / name))

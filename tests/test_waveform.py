@@ -17,7 +17,7 @@ from mcfit.fit.waveform import fit_waveform
 from mcfit.motion import damping_terms, integrate_accurate, simulate_record
 from mcfit import phase_plane
 from mcfit.phase_plane import phase_plane_motion
-from mcfit.records import Record, read_record
+from mcfit.io import Record, read_record
 from mcfit.turning import find_turning_points
 
 ROOT = Path(__file__).parents[1]

@@ -16,7 +16,7 @@ _PUBLIC = {
     "stop_time": "mcfit.decay", "quality_factor": "mcfit.decay",
     "quality_parts": "mcfit.decay", "power_law_amplitude": "mcfit.decay",
     "fit_decay": "mcfit.fit", "DecayFit": "mcfit.fit",
-    "read_record": "mcfit.records", "read_records": "mcfit.records", "Record": "mcfit.record",
+    "read_record": "mcfit.io", "read_records": "mcfit.io", "Record": "mcfit.record",
     "find_turning_points": "mcfit.turning", "TurningPoints": "mcfit.turning",
     "analyse_record": "mcfit.analysis", "Analysis": "mcfit.analysis",
     "simulate_record": "mcfit.motion",

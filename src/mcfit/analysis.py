@@ -32,7 +32,7 @@ class Analysis:
     source: str
     status: str
     error: str | None
-    record: object | None = None  # mcfit.records.Record
+    record: object | None = None  # mcfit.record.Record
     turning: TurningPoints | None = None
     fit: DecayFit | PowerLawFit | None = None
 

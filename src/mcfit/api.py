@@ -89,7 +89,7 @@ def analyse_file(path, *, unit=None, **options) -> Analysis:
     """:func:`analyse` of a record file (CSV, text, Excel...); for a file of several runs
     side by side give ``run=N``, or use :func:`analyse_files` for every run. ``unit``
     names the signal's unit where the header does not (``Position (mm)`` does)."""
-    from mcfit.records import read_records
+    from mcfit.io import read_records
 
     records = read_records(path, **_taken(options, READ_OPTIONS))
     keywords = _fit_keywords(options)

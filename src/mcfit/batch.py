@@ -284,7 +284,7 @@ def _job(argument):
 
 
 def _job_for(source, options, plot_path):
-    from mcfit.records import read_records
+    from mcfit.io import read_records
 
     try:
         records = read_records(source, time_col=options.time_col,
@@ -414,7 +414,7 @@ def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
     if multiprocessing.get_start_method() == "fork":
         # Forked workers inherit what is imported here: the numerical stack is then imported
         # once (about 1.4 s of CPU) instead of once in every worker.
-        for module in ("mcfit.analysis", "mcfit.records", "mcfit.report"):
+        for module in ("mcfit.analysis", "mcfit.io", "mcfit.report"):
             importlib.import_module(module)
     yield from _run_in_workers(arguments, jobs)
 

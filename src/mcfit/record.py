@@ -1,6 +1,6 @@
 """A decay record: two float arrays and what was decided on the way (numpy only).
 
-:func:`mcfit.records.read_record` makes one from a file, :func:`mcfit.motion.simulate_record`
+:func:`mcfit.io.read_record` makes one from a file, :func:`mcfit.motion.simulate_record`
 from the equation of motion; :func:`mcfit.analyse` takes either.
 """
 

@@ -82,7 +82,7 @@ def _one_record(q, seed, index):
     from mcfit.analysis import analyse_record, fit_turning_points
     from mcfit.fit.waveform import fit_waveform
     from mcfit.motion import simulate_record
-    from mcfit.records import Record
+    from mcfit.io import Record
     from mcfit.turning import find_turning_points
 
     b = math.pi / (q * PERIOD)

@@ -39,7 +39,7 @@ def _timed_stages(paths):
     """Per stage, per record CPU seconds (best of :data:`PASSES`), and the fitted records."""
     from mcfit.analysis import fit_turning_points
     from mcfit.errors import McfitError
-    from mcfit.records import read_record
+    from mcfit.io import read_record
     from mcfit.turning import turning_points_of
 
     best = dict.fromkeys(("read", "turning", "fit"), math.inf)

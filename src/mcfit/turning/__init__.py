@@ -78,7 +78,7 @@ __all__ = [
 
 
 def turning_points_of(record, **options):
-    """Turning points of a :class:`mcfit.records.Record` (waveform or turning-point table).
+    """Turning points of a :class:`mcfit.record.Record` (waveform or turning-point table).
 
     ``options`` go to :func:`find_turning_points` or :func:`turning_points_from_table`.
     """
