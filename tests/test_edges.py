@@ -1,12 +1,12 @@
 """The edges where real records live, on records from an integration that shares no code
-with mcfit (tests/independent_motion.py), with fixed seeds: right, or flagged."""
+with mcfit (mcfit.bench.reference_motion), with fixed seeds: right, or flagged."""
 
 import math
 
 import numpy as np
 import pytest
 
-from independent_motion import hysteretic, viscous
+from mcfit.bench.reference_motion import hysteretic, viscous
 from mcfit.analysis import analyse_record
 from mcfit.record import Record
 
