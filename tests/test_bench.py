@@ -14,7 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from mcfit import bench, decay
-from mcfit.bench import cycles
+from mcfit.bench import cycles, edges
 from mcfit.bench.throughput import CommandRate
 from mcfit.bench.timing import (ChildRun, bytecode_environment, child_environment,
                                 fastest_in_turn, run_child)
@@ -28,7 +28,8 @@ TINY = dataclasses.replace(
     batch_methods=("turning-points",), startup_runs=1, verdict_records=4, method_records=1, method_qs=(5,),
     integrator_scenes=(bench.IntegratorScene("short Fig. 20.19", 0.1, 0.1, 0.01, 4.0, 0.5, 2.0),),
     fit_scenes=(bench.FitScene("short b", "b", 1.0, 0.0, 0.05, 0.0, 1.0, 30),
-                bench.FitScene("short abc", "abc", 4.0, 0.1, 0.1, 0.01, 0.5, 20)))
+                bench.FitScene("short abc", "abc", 4.0, 0.1, 0.1, 0.01, 0.5, 20)),
+    edge_records=1, edge_scenes=edges.EDGE_SCENES[-3:])
 
 # Issue 17's targets, one line each in the throughput section.
 TARGETS = ("turning points + fit per record", "the same with --method auto's choice",
@@ -69,7 +70,7 @@ def test_every_section_runs_and_writes_the_plots(tmp_path, monkeypatch):
     blocks = list(bench.run(TINY, plot_dir=tmp_path / "plots"))
     text = "\n".join(blocks)
     for heading in ("Integrators:", "Fitting:", "Verdicts and 95 %", "Methods against Q",
-                    "Cycles:", "us/cycle", "Throughput:", "rec/s",
+                    "Cycles:", "us/cycle", "Edges:", "Throughput:", "rec/s",
                     "mcfit --help", "peak resident memory"):
         assert heading in text
     for setting in ("dt = T/50", "dt = T/100", "rtol 1e-06", "closed form"):
@@ -299,3 +300,112 @@ def test_a_ringdown_decays_to_exp_minus_2_and_its_file_holds_it(tmp_path):
     table = np.loadtxt(path, delimiter=",", skiprows=1)
     np.testing.assert_allclose(table[:, 1], cycles.ringdown(300, 10, seed=1)[1], atol=6e-7)
     assert 20 <= path.stat().st_size / 3_000 <= 32  # about 31 bytes a row at 10^7 rows
+
+
+# The edges section.
+
+def test_the_reference_integration_imports_nothing_from_mcfit():
+    """It checks mcfit's records, so it must not share mcfit's code."""
+    import ast
+
+    tree = ast.parse(Path(edges.motion.__file__).read_text(encoding="utf-8"))
+    imported = [alias.name for node in ast.walk(tree) if isinstance(node, ast.Import)
+                for alias in node.names]
+    imported += [node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)]
+    assert imported and not any(name.split(".")[0] == "mcfit" for name in imported)
+
+
+def test_the_edges_section_prints_one_row_per_scene(monkeypatch):
+    """Through the command line: a row per scene, the three outcomes' counts summing to N,
+    each with an interval around its rate."""
+    scenes = (edges.EDGE_SCENES[5], edges.EDGE_SCENES[-1])  # the held start, 8 bits
+    monkeypatch.setattr(bench, "QUICK", dataclasses.replace(
+        TINY, name="quick", edge_records=2, edge_scenes=scenes))
+    result = CliRunner().invoke(cli, ["bench", "--section", "edges"])
+    assert result.exit_code == 0, result.output
+    assert "edges: held 1.5 s, then Fig. 20.19" in result.stderr
+    rows = result.stdout.split("Edges:", 1)[1].strip().splitlines()
+    assert rows[1].split() == ["scene", "N", "right", "flagged", "silently", "wrong", "ms"]
+    assert len(rows) == 2 + len(scenes)
+    for row, scene in zip(rows[2:], scenes):
+        assert row.startswith(scene.name)
+        cells = re.findall(r"(\d+) \((\d\.\d\d)-(\d\.\d\d)\)", row[len(scene.name):])
+        assert len(cells) == 3
+        assert row[len(scene.name):].split()[0] == "2"
+        assert sum(int(count) for count, _, _ in cells) == 2
+        for count, low, high in cells:
+            assert float(low) <= int(count) / 2 <= float(high)
+        assert float(row.split()[-1]) > 0
+
+
+def test_the_wilson_interval_is_the_score_interval():
+    """By hand: 0 of n gives (0, z^2/(n + z^2)); 5 of 10 is symmetric about 1/2."""
+    z2 = 1.959963984540054**2
+    low, high = edges.wilson_interval(0, 5)
+    assert low == pytest.approx(0.0, abs=1e-12) and high == pytest.approx(z2 / (5 + z2))
+    low, high = edges.wilson_interval(5, 10)
+    half = math.sqrt(z2) * math.sqrt(0.25 / 10 + z2 / 400) / (1 + z2 / 10)
+    assert (low, high) == pytest.approx((0.5 - half, 0.5 + half))
+
+
+def _result(model="bc", values=None, stderr=None, *, warnings=(), resolved=True,
+            form="amplitude", notes=(), status="ok", error=None, n_points=800):
+    """A hand-made analysis with the attributes the classifier reads."""
+    from types import SimpleNamespace
+
+    fit = SimpleNamespace(model=model, values=values or {}, stderr=stderr or {},
+                          interval_factor=1.96, resolved=resolved, damping_form=form)
+    return SimpleNamespace(status=status, error=error, warnings=tuple(warnings),
+                           fit=fit if status == "ok" else None,
+                           turning=SimpleNamespace(notes=tuple(notes)))
+
+
+BC = edges.EdgeScene("b + c", None, 1e-3, {"b": 1.0, "c": 0.1}, "amplitude")
+
+
+@pytest.mark.parametrize("result, outcome", [
+    (_result("bc", {"b": 1.01, "c": 0.1}, {"b": 0.01, "c": 0.01}), "right"),
+    # A true value just outside its interval: wrong without a word, flagged with one.
+    (_result("bc", {"b": 1.03, "c": 0.1}, {"b": 0.01, "c": 0.01}), "wrong"),
+    (_result("bc", {"b": 1.03, "c": 0.1}, {"b": 0.01, "c": 0.01},
+             warnings=("misfit",)), "flagged"),
+    # b dropped, a fluid term invented, resolved: the issue's Q = 3 scene.
+    (_result("ac", {"a": 0.5, "c": 0.22}, {"a": 0.01, "c": 0.01, "b": None}), "wrong"),
+    (_result("ac", {"a": 0.5, "c": 0.22}, {"a": 0.01, "c": 0.01}, resolved=False), "flagged"),
+    (_result("ac", {"a": 0.5, "c": 0.22}, {"a": 0.01, "c": 0.01}, form="cannot tell"),
+     "flagged"),
+    (_result(status="error", error="f.csv: only 2 turning points found (need 4)"), "flagged"),
+    # The right numbers with the wrong form claimed outright are not right.
+    (_result("bc", {"b": 1.0, "c": 0.1}, {"b": 0.01, "c": 0.01}, form="velocity"), "wrong"),
+    (_result("bc", {"b": 1.0, "c": 0.1}, {"b": 0.01, "c": 0.01}, form="cannot tell"),
+     "right"),
+    (_result("bc", {"b": 1.0, "c": 0.1}, {"b": 0.01, "c": None}), "wrong"),
+])
+def test_the_classifier_puts_each_result_where_it_belongs(result, outcome):
+    assert edges.classify(result, BC) == outcome
+
+
+def test_the_classifier_judges_ties_beats_and_clipping_by_their_own_rule():
+    tie = edges.EdgeScene("tie", None, 5e-3, {"b": 0.01}, "velocity", kind="tie")
+    assert edges.classify(_result("a", resolved=False), tie) == "right"
+    assert edges.classify(_result("b", {"b": 0.011}, {"b": 0.001}), tie) == "right"
+    assert edges.classify(_result("b", {"b": 0.02}, {"b": 0.001}), tie) == "wrong"
+    assert edges.classify(_result("a", {"a": 0.1}, {"a": 0.01}), tie) == "wrong"
+    beat = edges.EdgeScene("beat", None, 1e-3, {"b": 0.01}, kind="beat")
+    named = "the amplitude rises again at t = 50: beating of two modes, or a disturbance"
+    assert edges.classify(_result("b", warnings=(named,)), beat) == "right"
+    assert edges.classify(_result("bc", {"b": 0.01}, {"b": 0.001}), beat) == "wrong"
+    assert edges.classify(_result("bc", warnings=("misfit",)), beat) == "flagged"
+    clip = edges.EdgeScene("8 bits", None, 0.3, {"b": 0.1}, kind="clip", quantum=1.0)
+    assert edges.classify(_result("b"), clip) == "right"
+    clipped = _result("b", notes=("3 clipped (saturated) extrema excluded",))
+    assert edges.classify(clipped, clip) == "wrong"
+
+
+def test_noisy_records_are_seeded_and_quantised():
+    scene = edges.EDGE_SCENES[-1]
+    clean = (np.arange(0.0, 1.0, 0.1), np.linspace(28.0, 227.0, 10))
+    one, two = (edges.noisy_record(scene, clean, [1, 2]) for _ in range(2))
+    np.testing.assert_array_equal(one.x, two.x)
+    np.testing.assert_array_equal(one.x, np.round(one.x))
+    assert not np.array_equal(one.x, edges.noisy_record(scene, clean, [1, 3]).x)

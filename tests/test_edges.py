@@ -1,12 +1,12 @@
 """The edges where real records live, on records from an integration that shares no code
-with mcfit (tests/independent_motion.py), with fixed seeds: right, or flagged."""
+with mcfit (mcfit.bench.reference_motion), with fixed seeds: right, or flagged."""
 
 import math
 
 import numpy as np
 import pytest
 
-from independent_motion import hysteretic, viscous
+from mcfit.bench.reference_motion import hysteretic, viscous
 from mcfit.analysis import analyse_record
 from mcfit.record import Record
 
@@ -102,7 +102,7 @@ def test_drag_is_not_called_an_amplitude_form():
     """Viscous damping with quadratic drag kappa*x'|x'| (Q about 3, noise 5e-3): the
     velocity form of drag is not fitted, so the amplitude forms win by default; the form
     is "cannot tell", not "amplitude"."""
-    from independent_motion import integrate
+    from mcfit.bench.reference_motion import integrate
 
     omega = 2 * math.pi
     t, x = integrate(lambda _, v, __: 2.0 * v + 1.2 * v * abs(v), omega, 1.0, 6.0, 100.0)

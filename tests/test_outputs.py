@@ -42,8 +42,10 @@ def test_csv_has_domain_units_method_resolved_chi_square_and_warnings():
         "time", "per second", "turning-points", "true")
     assert float(fig["reduced_chi_square"]) == pytest.approx(0.88, abs=0.01)
     assert fig["warnings"] == ""
-    # The Coulomb stop's last swings miss the averaged law by more than their noise.
-    assert "reduced chi-square" in by_source["coulomb_stop.csv"]["warnings"]
+    # The Coulomb stop's turning points after the mass sticks are left out: the swings
+    # before it fit the averaged law within their noise (it warned of a misfit before).
+    stop = by_source["coulomb_stop.csv"]
+    assert stop["warnings"] == "" and float(stop["reduced_chi_square"]) < 2
 
 
 def test_csv_with_bootstrap_has_the_intervals():

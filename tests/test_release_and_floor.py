@@ -266,7 +266,7 @@ def test_a_held_start_with_a_knock_is_released_where_the_swing_starts():
     so the held stretch and the release crest, half held and half swinging, were fitted
     (reduced chi-square in the thousands). Now the release is where the swing starts, and
     the crest there is left out with the held ones."""
-    from independent_motion import viscous
+    from mcfit.bench.reference_motion import viscous
 
     omega = 2 * np.pi / 0.8
     t = np.arange(0.0, 30.0, 0.02)

@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from independent_motion import integrate
+from mcfit.bench.reference_motion import integrate
 from mcfit.viscous_motion import coulomb_force, viscous_motion
 
 OMEGA = 2 * math.pi

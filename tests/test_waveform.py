@@ -269,7 +269,7 @@ def test_a_few_swings_with_friction_are_fitted_by_the_waveform(quality, seed):
     integration, 8 s at 100 Hz, noise 1e-3: the mass stops after a few swings, too few
     turning points for the averaged law (refused before: "only 2 turning points found").
     The waveform fit recovers b and c within 3 standard errors, in Eq. 20.55's form."""
-    from independent_motion import hysteretic
+    from mcfit.bench.reference_motion import hysteretic
 
     b = OMEGA / (2 * quality)
     c = b / 9

@@ -28,7 +28,8 @@ CRITERIA = ("aicc", "bic")
 FIT_METHODS = ("auto", "turning-points", "waveform")
 SIMULATE_METHODS = ("auto", "averaged", "cromer-euler", "symplectic", "accurate")
 FORMATS = ("text", "json", "csv")
-BENCH_SECTIONS = ("integrators", "fitting", "verdicts", "methods", "cycles", "throughput")
+BENCH_SECTIONS = ("integrators", "fitting", "verdicts", "methods", "cycles", "edges",
+                  "throughput")
 # The report figure's panels: the record, the amplitudes with the fits (and residuals),
 # Q(t), the damping rate, Q and the period (backbone) against amplitude.
 PANELS = ("record", "amplitude", "q", "rate", "qamp", "backbone")

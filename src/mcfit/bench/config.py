@@ -119,7 +119,7 @@ THROUGHPUT_SCENE = FitScene("all three regimes, 80 cycles", "abc", 4.0, 0.05, 0.
 
 @dataclass(frozen=True)
 class BenchConfig:
-    """What a bench run covers. :data:`QUICK` runs in about two minutes, :data:`FULL` in
+    """What a bench run covers. :data:`QUICK` runs in about five minutes, :data:`FULL` in
     about an hour on two cores (most of it the methods section's waveform fits).
 
     Attributes
@@ -153,6 +153,10 @@ class BenchConfig:
         Noisy records per Q of the methods section.
     method_qs : tuple
         The Q values of the methods section.
+    edge_records : int
+        Noisy records per scene of the edges section.
+    edge_scenes : tuple or None
+        The edges section's scenes; None for all of :data:`mcfit.bench.edges.EDGE_SCENES`.
     seed : int
         Seed of every random record.
     integrator_scenes, fit_scenes : tuple
@@ -175,6 +179,8 @@ class BenchConfig:
     verdict_records: int = 40
     method_records: int = 3
     method_qs: tuple = (3, 20)
+    edge_records: int = 5
+    edge_scenes: tuple | None = None
     seed: int = 2026
     integrator_scenes: tuple = INTEGRATOR_SCENES
     fit_scenes: tuple = FIT_SCENES
@@ -186,5 +192,6 @@ FULL = BenchConfig(name="full", steps_per_period=(50, 100, 250, 500, 1000, 2500,
                    snrs=(1e2, 1e3, 1e4), samples_per_cycle=(10, 20, 50, 200), repeats=100,
                    batch_records=200, batch_files=200, batch_runs=3, startup_runs=7,
                    big_samples=10_000_000, verdict_records=400,
-                   method_records=40, method_qs=(2, 3, 5, 10, 20, 50))
+                   method_records=40, method_qs=(2, 3, 5, 10, 20, 50),
+                   edge_records=60)
 

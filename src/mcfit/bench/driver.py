@@ -59,6 +59,11 @@ def run(config: BenchConfig = QUICK, sections=SECTIONS, plot_dir=None, progress=
         from mcfit.bench.cycles import format_cycles, run_cycles
 
         yield format_cycles(run_cycles(config, progress))
+    if "edges" in sections:
+        from mcfit.bench.edges import EDGE_SCENES, format_edges, run_edges
+
+        yield format_edges(run_edges(config.edge_records, config.seed,
+                                     config.edge_scenes or EDGE_SCENES, progress))
     if "throughput" in sections:
         from mcfit.bench.throughput import format_throughput, run_throughput
 

@@ -2,7 +2,11 @@
 scipy's DOP853 between the reversals of the velocity (located as events), so the
 discontinuous friction never sits inside a step; the mass sticks at a reversal where the
 spring cannot overcome static friction (equal to the sliding friction mu) and the
-amplitude-form forces there."""
+amplitude-form forces there.
+
+The records of the edges section of ``mcfit bench`` and of the tests of the edge scenes.
+This module imports nothing from mcfit, so that it stays independent of the code it
+checks."""
 
 from __future__ import annotations
 
