@@ -199,3 +199,22 @@ def test_real_pendulum_keeps_its_air_drag_with_the_correction():
     assert any("`pendulum`" in w for w in plain.warnings)
     # The geometry accounts for part of the amplitude dependence: Q rises.
     assert corrected.fit.q_summary["initial"] > plain.fit.q_summary["initial"] + 5
+
+
+def test_a_large_swing_in_degrees_without_a_unit_is_recognised():
+    """A video-tracked pendulum released at 78 degrees, its angle in degrees under a
+    column name that does not say so: the period's growth matches a pendulum's once the
+    swing is read in degrees (beyond pi, it cannot be radians), and the warning says so."""
+    from mcfit.analysis import analyse_record
+    from mcfit.bench.reference_motion import integrate
+    from mcfit.record import Record
+
+    omega = 2 * math.pi / 1.6
+    t, theta = integrate(lambda _, v, __: 0.02 * v + 0.05 * v * abs(v), omega,
+                         math.radians(78.0), 30.0, 30.0,
+                         restoring=lambda x: omega**2 * math.sin(x))
+    theta = theta + np.random.default_rng(1).normal(0.0, 2e-3, t.size)
+    analysis = analyse_record(Record(source="tracker", t=t, x=np.degrees(theta)))
+    [warning] = [w for w in analysis.warnings if "`pendulum`" in w]
+    assert warning.startswith("read as an angle in degrees")
+    assert warning.endswith("fit it with `pendulum` and `degrees`")

@@ -615,3 +615,13 @@ def test_a_steady_line_is_found_in_a_periodogram_without_its_padding(rng):
     line = find_steady_line(t, x, periodogram[:5], 1e-3)
     assert line == find_steady_line(t, x, periodogram, 1e-3)
     assert line.removed and line.frequency == pytest.approx(0.13, rel=1e-4)
+
+
+def test_a_straight_ramp_is_said_to_span_its_range():
+    """A ramp from 0 to 12 has no oscillation; the message said it "swings by 2.66e-15
+    about its mean" (its swing about the fitted line), though it spans 12."""
+    t = np.arange(0.0, 20.0, 0.01)
+    x = 0.6 * t + np.random.default_rng(1).normal(0.0, 1e-3, t.size)
+    with pytest.raises(RecordError, match=r"the signal spans 12 but swings by .* about its "
+                                          r"straight-line trend"):
+        find_turning_points(t, x, source="ramp.csv")

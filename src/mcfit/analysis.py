@@ -162,18 +162,27 @@ def _sigma_of_used(turning):
 
 
 def with_large_swing_warning(fit, turning: TurningPoints, degrees=False):
-    """``fit`` with :func:`mcfit.fit.pendulum.large_swing_warning` added when it applies."""
+    """``fit`` with :func:`mcfit.fit.pendulum.large_swing_warning` added when it applies:
+    the signal taken as radians, or as degrees where ``degrees`` or where its swing is too
+    large for radians but not for degrees."""
     if not isinstance(fit, DecayFit) or turning.domain != "time":
         return fit
-    scale = RADIANS_PER_DEGREE if degrees else 1.0
-    values = {"a": fit.values["a"] / scale, "b": fit.values["b"], "c": fit.values["c"] * scale}
     used = turning.used
+    largest = float(np.max(turning.y[used], initial=0.0))
+    guessed = not degrees and math.pi < largest < 180.0
+    scale = RADIANS_PER_DEGREE if degrees or guessed else 1.0
+    values = {"a": fit.values["a"] / scale, "b": fit.values["b"], "c": fit.values["c"] * scale}
     sigma = np.where(np.isfinite(turning.sigma[used]) & (turning.sigma[used] > 0),
                      turning.sigma[used], 1.0) * scale
     warning = large_swing_warning(values, fit.model, turning.t[used], turning.y[used] * scale,
                                   sigma, turning.period_drift, turning.period_drift_sigma,
                                   fit.stderr.get("b"))
-    return fit if warning is None else replace(fit, warnings=fit.warnings + (warning,))
+    if warning is None:
+        return fit
+    if guessed:
+        warning = ("read as an angle in degrees (it swings beyond pi, too far for radians), "
+                   + warning + " and `degrees`")
+    return replace(fit, warnings=fit.warnings + (warning,))
 
 
 def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", model=None):

@@ -84,9 +84,9 @@ def _coarse_extrema(t, x, e0, e1, t_ref, period, samples_per_cycle, noise, sourc
     if not np.isfinite(threshold) or threshold <= 0:
         threshold = 1e-3 * scale
     if threshold > _MAX_NOISE_SWING * scale:
-        raise RecordError(f"no oscillation above the noise in {source}: the signal swings by "
-                          f"{scale:.3g} about its mean and the noise is {noise:.3g}. Check the "
-                          "signal column.")
+        raise RecordError(f"no oscillation above the noise in {source}: the signal spans "
+                          f"{np.ptp(x):.3g} but swings by {scale:.3g} about its straight-line "
+                          f"trend, and the noise is {noise:.3g}. Check the signal column.")
     first, changes = _side_changes(smooth, threshold)
     if first is None:
         raise RecordError(f"no oscillation found in {source}. Check the signal column.")
