@@ -170,9 +170,11 @@ def test_a_stop_signal_while_a_worker_starts_ends_it(tmp_path, monkeypatch):
     waited for forever at exit."""
     files = [str(_record(tmp_path / f"run{i}.csv", duration=10.0, seed=i)) for i in range(3)]
     real_start = multiprocessing.Process.start
+    started = []  # this test's workers only: another test's may share the process
 
     def start_then_stop(process):
         real_start(process)
+        started.append(process)
         os.kill(os.getpid(), signal.SIGTERM)  # pending: blocked until the start is over
 
     def stop(signum, frame):
@@ -184,10 +186,10 @@ def test_a_stop_signal_while_a_worker_starts_ends_it(tmp_path, monkeypatch):
     try:
         with pytest.raises(_Stop):
             list(batch.run_jobs(files, batch.FitOptions(), [None] * 3, jobs=2))
-        left = multiprocessing.active_children()
+        left = [process for process in started if process.is_alive()]
     finally:
         signal.signal(signal.SIGTERM, previous)
-        for process in multiprocessing.active_children():
+        for process in started:
             process.kill()
             process.join(TIMEOUT)
-    assert left == []
+    assert started and left == []
