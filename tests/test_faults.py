@@ -28,6 +28,7 @@ from click.testing import CliRunner
 from mcfit import decay
 from mcfit.cli import cli
 from mcfit.errors import printable
+from process_tools import children
 
 TIMEOUT = 120  # seconds any one mcfit process may take, however loaded the machine
 
@@ -81,14 +82,6 @@ def _lines_in_temporary(folder, name):
 # --------------------------------------------------------------------------- workers, signals
 
 
-def _children(pid):
-    try:
-        return [int(p) for task in Path(f"/proc/{pid}/task").iterdir()
-                for p in (task / "children").read_text().split()]
-    except OSError:
-        return []
-
-
 @pytest.mark.slow
 def test_a_killed_worker_costs_only_its_record(tmp_path):
     """SIGKILL (as the out-of-memory killer sends it) to a real worker of a --jobs 2 batch."""
@@ -102,9 +95,9 @@ def test_a_killed_worker_costs_only_its_record(tmp_path):
                                       "--seed", "1", "--format", "csv", "-o", out),
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        _wait_for(lambda: len(_children(process.pid)) == 2, process, "two workers")
+        _wait_for(lambda: len(children(process.pid)) == 2, process, "two workers")
         time.sleep(0.5)  # both are fitting their first record by now
-        victim = _children(process.pid)[0]
+        victim = children(process.pid)[0]
         os.kill(victim, signal.SIGKILL)
         stdout, stderr = process.communicate(timeout=TIMEOUT)
     finally:
@@ -119,7 +112,7 @@ def test_a_killed_worker_costs_only_its_record(tmp_path):
     assert ("was killed by signal 9 (SIGKILL), likely by the out-of-memory killer; fit it "
             "again alone") in lost[0]
     assert stderr.count("\n") == 1 and stderr.startswith("Error: the worker process fitting ")
-    assert not _children(process.pid)
+    assert not children(process.pid)
     assert _digests(files) == before
     assert not _temporary_files(tmp_path, tmp_path / "runs")
 
@@ -159,8 +152,8 @@ def test_a_stop_signal_to_a_batch_with_workers_ends_them(tmp_path):
                                       "csv", "-o", out),
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        _wait_for(lambda: len(_children(process.pid)) == 2, process, "two workers")
-        workers = _children(process.pid)
+        _wait_for(lambda: len(children(process.pid)) == 2, process, "two workers")
+        workers = children(process.pid)
         process.send_signal(signal.SIGTERM)
         stdout, stderr = process.communicate(timeout=TIMEOUT)
     finally:

@@ -22,6 +22,7 @@ from click.testing import CliRunner
 
 from mcfit import batch, decay
 from mcfit.cli import cli
+from process_tools import children
 
 TIMEOUT = 120  # seconds any one wait may take, however loaded the machine
 
@@ -34,14 +35,6 @@ def _record(path, *, b=0.02, duration=60.0, rate=50.0, seed=1):
     path.write_text("t,x\n" + "".join(f"{ti!r},{xi!r}\n"
                                       for ti, xi in zip(t.tolist(), x.tolist())))
     return path
-
-
-def _children(pid):
-    try:
-        return [int(p) for task in Path(f"/proc/{pid}/task").iterdir()
-                for p in (task / "children").read_text().split()]
-    except OSError:
-        return []
 
 
 def _gone(pid):
@@ -76,9 +69,9 @@ def test_workers_die_with_a_parent_killed_outright(tmp_path):
                                 str(plots)],
                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
-        _wait_until(lambda: len(_children(process.pid)) == 2 or process.poll() is not None,
+        _wait_until(lambda: len(children(process.pid)) == 2 or process.poll() is not None,
                     "two workers")
-        workers = _children(process.pid)
+        workers = children(process.pid)
         assert len(workers) == 2
         process.kill()
         process.wait(timeout=TIMEOUT)
@@ -86,7 +79,7 @@ def test_workers_die_with_a_parent_killed_outright(tmp_path):
         assert list(plots.iterdir()) == []
     finally:
         process.kill()
-        for pid in _children(process.pid):
+        for pid in children(process.pid):
             os.kill(pid, signal.SIGKILL)
 
 

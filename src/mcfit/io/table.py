@@ -18,7 +18,7 @@ from mcfit.io.decoding import _binary_problem, _decode, _drop_trailing_nul, _rea
 from mcfit.io.layouts import recognised_layout
 from mcfit.io.sniffing import (_header_names, _holds_numbers, _is_prose, _numeric_lines,
                                _sniff_separator)
-from mcfit.io.tidying import _tidy_text
+from mcfit.io.tidying import _content_lines, _tidy_text
 from mcfit.io.tokens import _CLOCK, _ISO_DATE_TIME, _MAX_ROWS_AS_DATA, _is_number, _shown, _split
 
 # Bytes sniffed to choose separator, decimal mark, header and columns.
@@ -156,7 +156,7 @@ def _plain_table(source, has_names, notes, clock, transposed):
     """The table of text that is at most a header line over rows (``has_names`` None: the
     separator and header are sniffed; else tab-separated, as the tidying step writes)."""
     name, lines = source.name, source.lines
-    content, comment_chars = _content_lines(lines)
+    content, comment_chars = _first_content_lines(lines)
     if not content:
         raise InputError(f"{name} holds only comments or blank lines. Give a file with data rows.")
     if has_names is None:
@@ -206,22 +206,11 @@ def _plain_table(source, has_names, notes, clock, transposed):
     return table
 
 
-def _content_lines(lines):
+def _first_content_lines(lines):
     """([(line number, stripped line)] of the first 200 lines that are neither blank nor
     comments, the comment characters seen)."""
     comment_chars = set()
-    content = []
-    for number, line in enumerate(lines):
-        stripped = line.strip()
-        if not stripped:
-            continue
-        if stripped[0] in "#%":
-            comment_chars.add(stripped[0])
-            continue
-        content.append((number, stripped))
-        if len(content) >= 200:
-            break
-    return content, comment_chars
+    return _content_lines(enumerate(lines), 200, comment_chars), comment_chars
 
 
 def _column_reader(source, sep, decimal, data_start, comment, other_comment):

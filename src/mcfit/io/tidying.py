@@ -22,6 +22,24 @@ from mcfit.io.tokens import (_CLOCK, _FORTRAN_EXPONENT, _ISO_DATE_TIME, _KNOWN_U
 _UNIT_TOKEN = re.compile(r"^[\(\[]?[A-Za-zµμ°%Ω][A-Za-z0-9µμ°%Ω/^*·.\- ]{0,9}[\)\]]?$")
 
 
+def _content_lines(numbered, limit, comment_chars):
+    """[(line number, stripped line)] of the first ``limit`` of ``numbered`` that are
+    neither blank nor comments; the comment characters seen are added to
+    ``comment_chars``."""
+    out = []
+    for number, line in numbered:
+        stripped = line.strip()
+        if not stripped:
+            continue
+        if stripped[0] in "#%":
+            comment_chars.add(stripped[0])
+            continue
+        out.append((number, stripped))
+        if len(out) >= limit:
+            break
+    return out
+
+
 def _tidy_text(name, lines, tail_lines=()):
     """(text, notes, clock_columns, transposed) or None when the plain reader suffices.
 
@@ -31,18 +49,7 @@ def _tidy_text(name, lines, tail_lines=()):
     comment_chars = set()
 
     def content_lines(numbered, limit):
-        out = []
-        for number, line in numbered:
-            stripped = line.strip()
-            if not stripped:
-                continue
-            if stripped[0] in "#%":
-                comment_chars.add(stripped[0])
-                continue
-            out.append((number, stripped))
-            if len(out) >= limit:
-                break
-        return out
+        return _content_lines(numbered, limit, comment_chars)
 
     # The first lines and the last ones decide whether the plain reader suffices; a long
     # file is scanned whole only when it does not.
