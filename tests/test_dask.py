@@ -9,6 +9,7 @@ the usage errors are one line each, before any output.
 
 from __future__ import annotations
 
+import gc
 import json
 import os
 import signal
@@ -16,6 +17,7 @@ import socket
 import subprocess
 import sys
 import time
+import warnings
 
 import numpy as np
 import pytest
@@ -41,6 +43,11 @@ def cluster():
             distributed.LocalCluster(
             n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
         yield local
+    # distributed leaves its event loops' sockets to the garbage collector: collect them
+    # here, with their ResourceWarnings, not in whichever test of this process runs next.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResourceWarning)
+        gc.collect()
 
 
 @pytest.fixture(scope="module")

@@ -61,19 +61,22 @@ class _WindowFits:
         self.phase_sensitivity = np.zeros(k)  # d(projection)/d(crest phase) / projection
         self.at_max = np.zeros(k, dtype=np.int64)  # samples at the record's max / min level
         self.at_min = np.zeros(k, dtype=np.int64)
+        self.quantum = 0.0  # the grid of the record's values near its extremes (0: none)
 
 
 @dataclass(frozen=True)
 class Samples:
     """The finite samples of a record, with what every pass of half-cycle fits needs of
-    them, found once: the time steps and the samples at the record's largest and smallest
-    level (within 1e-9 of its range, for clipping)."""
+    them, found once: the time steps, the samples at the record's largest and smallest
+    level (within 1e-9 of its range, for clipping) and, where several sit there, the
+    quantum of the values near those levels (0 for values not on a grid)."""
 
     t: np.ndarray
     x: np.ndarray
     steps: np.ndarray
     at_top: np.ndarray
     at_bottom: np.ndarray
+    quantum: float = 0.0
 
     @classmethod
     def of(cls, t, x, steps=None):
@@ -81,8 +84,21 @@ class Samples:
         top = float(np.max(x))
         bottom = float(np.min(x))
         tolerance = 1e-9 * (top - bottom)
-        return cls(t, x, np.diff(t) if steps is None else steps,
-                   np.flatnonzero(x >= top - tolerance), np.flatnonzero(x <= bottom + tolerance))
+        at_top, at_bottom = (np.flatnonzero(x >= top - tolerance),
+                             np.flatnonzero(x <= bottom + tolerance))
+        quantum = (_quantum(x, top, bottom) if max(at_top.size, at_bottom.size) >= 2
+                   else 0.0)
+        return cls(t, x, np.diff(t) if steps is None else steps, at_top, at_bottom, quantum)
+
+
+def _quantum(x, top, bottom):
+    """The smallest step between the distinct values within a tenth of the range of
+    either extreme (an ADC's count), or 0 where it is under 1e-6 of the range."""
+    span = top - bottom
+    near = x[(x >= top - 0.1 * span) | (x <= bottom + 0.1 * span)]
+    steps = np.diff(np.unique(near))
+    step = float(np.min(steps[steps > 0], initial=span))
+    return step if step >= 1e-6 * span else 0.0
 
 
 def _fit_windows(samples, centres, signs, half, gamma, e0, e1, t_ref):
@@ -101,6 +117,7 @@ def _fit_windows(samples, centres, signs, half, gamma, e0, e1, t_ref):
     hi = np.maximum(hi, lo)
     out.edge = (centres - 0.5 * half < t[0]) | (centres + 0.5 * half > t[-1])
     out.count = hi - lo
+    out.quantum = samples.quantum
     out.at_max, out.at_min = (np.searchsorted(where, hi) - np.searchsorted(where, lo)
                               for where in (samples.at_top, samples.at_bottom))
     unbroken = _without_gaps(samples.steps, lo, hi, half)
@@ -241,11 +258,19 @@ def _pooled_noise(fit):
 
 
 def _clipped(fit, signs):
-    """Crests flattened at the record's extreme level (saturation)."""
+    """Crests flattened at the record's extreme level (saturation). On a grid of values
+    (an ADC's counts) a crest of amplitude A stays within one count q of its top for about
+    1 + (samples a cycle/pi)*sqrt(2q/A) samples: only a longer run at the level is a
+    rail."""
     clipped = np.zeros(signs.size, dtype=bool)
     if fit.at_max.max(initial=0) < 2 and fit.at_min.max(initial=0) < 2:
         return clipped  # the usual case: no window has two samples at either level
+    top_run = 1.0 + (2 * fit.count / np.pi) * np.sqrt(
+        2 * fit.quantum / np.maximum(np.abs(fit.y), 1e-300))
     for count in (np.where(signs > 0, fit.at_max, 0), np.where(signs < 0, fit.at_min, 0)):
+        if fit.quantum > 0:
+            clipped |= count > 2 * top_run
+            continue
         hits = count >= 2
         if np.count_nonzero(hits) >= 2 or np.any(count >= 3):
             clipped |= hits
