@@ -41,7 +41,7 @@ def cluster():
     of being tried on another worker."""
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
             distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0") as local:
         yield local
     # distributed leaves its event loops' sockets to the garbage collector: collect them
     # here, with their ResourceWarnings, not in whichever test of this process runs next.

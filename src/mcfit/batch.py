@@ -426,8 +426,8 @@ _STOP_SECONDS = 5.0
 class _Worker:
     """One worker process and the pipe that carries its jobs and results.
 
-    The worker joins ``pool`` as soon as its process exists, before a stop signal can be
-    delivered, so that whoever ends the pool ends it too.
+    The worker joins ``pool`` before its process starts, so that whoever ends the pool
+    ends it too, whenever a stop signal comes.
     """
 
     def __init__(self, pool: list):
@@ -438,16 +438,18 @@ class _Worker:
         self.process = multiprocessing.Process(target=_work, args=(child, parent),
                                                daemon=True)
         self.task = None  # (index, argument) of the record being fitted
-        # Blocked while the process starts, so that a stop signal cannot reach the new
-        # process before it ignores it (it would print a KeyboardInterrupt traceback), nor
-        # interrupt this one between the start and joining the pool (the worker, which
-        # ignores SIGTERM, would then be waited for forever at exit).
+        # In the pool before it starts: a stop signal that another thread takes (a BLAS
+        # pool's, say; the mask below holds it back from this one only) runs its handler
+        # here between any two steps, and a worker started outside the pool, which
+        # ignores SIGTERM, would be waited for forever at exit. Blocked while the process
+        # starts, so that the signal cannot reach the new process before it ignores it
+        # (it would print a KeyboardInterrupt traceback).
+        pool.append(self)
         blocked = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
             self.process.start()
-            pool.append(self)
-            child.close()
         finally:
+            child.close()
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
     def give(self, task):
@@ -465,6 +467,9 @@ class _Worker:
         hold copies of its end. Bounded: a worker still there after :data:`_STOP_SECONDS`
         is killed, and one that outlives that too (stuck in the kernel) is left.
         """
+        if self.process.pid is None:  # stopped before its process started
+            self.connection.close()
+            return
         if self.task is None:
             try:
                 self.connection.send(None)
