@@ -299,3 +299,19 @@ def test_a_waveform_fit_names_residual_structure_below_the_misfit_limit():
     fit = analyse_record(Record(source="disturbed", t=t, x=x)).fit
     assert fit.method == "waveform" and fit.reduced_chi_square < 2
     assert any(w.startswith("residuals are correlated") for w in fit.warnings)
+
+
+def test_a_few_swings_fit_shows_the_fitted_motions_turning_points():
+    """The stand-in turning points of a few-swings fit (a damped cosine's, which start the
+    waveform fit) are replaced by the fitted law's amplitudes at their times: a figure or
+    a table of them then shows the fit, not a damped cosine that disagrees with it."""
+    from mcfit.bench.reference_motion import hysteretic
+
+    b = OMEGA / 4
+    t, x = hysteretic(0.0, b, b / 9, OMEGA, 1.0, 8.0, 100.0)
+    x = x + np.random.default_rng(1).normal(0.0, 1e-3, t.size)
+    analysis = analyse_record(Record(source="few", t=t, x=x))
+    np.testing.assert_allclose(analysis.turning.y, analysis.fit.amplitude(analysis.turning.t),
+                               rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(analysis.fit.y, analysis.fit.y_fit)
+    assert any("not measured but the fitted motion's" in n for n in analysis.turning.notes)

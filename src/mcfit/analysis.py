@@ -420,7 +420,7 @@ def _few_swings_analysis(record, *, criterion, model):
     """The waveform fit of a record with too few turning points for the averaged law,
     started from a damped cosine (:mod:`mcfit.fit.few_swings`), or None where even that
     cannot be fitted."""
-    from mcfit.fit.few_swings import few_swings_start
+    from mcfit.fit.few_swings import few_swings_start, with_fitted_amplitudes
 
     try:
         turning, start = few_swings_start(record.t, record.x, record.source)
@@ -432,6 +432,7 @@ def _few_swings_analysis(record, *, criterion, model):
                   "were found: fitted by the equation of motion from a damped cosine's start")
     if not describes_waveform(fit):
         fit = _unresolved(replace(fit, warnings=fit.warnings + (_misfit_warning(fit),)))
+    turning, fit = with_fitted_amplitudes(turning, fit)
     error = None if fit.message is None else f"{record.source}: {fit.message}"
     return Analysis(source=record.source, status=fit.status, error=error, record=record,
-                    turning=replace(turning, period=2 * math.pi / fit.omega), fit=fit)
+                    turning=turning, fit=fit)

@@ -8,6 +8,7 @@ record's, to start :func:`mcfit.fit.waveform.fit_waveform` in each form.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from scipy import optimize
@@ -21,7 +22,7 @@ from mcfit.fit.waveform import sample_noise
 from mcfit.turning.result import TurningPoints, _frozen
 from mcfit.viscous_motion import viscous_motion
 
-__all__ = ["few_swings_start"]
+__all__ = ["few_swings_start", "with_fitted_amplitudes"]
 
 # Fewest zero crossings after the first crest: a period needs two.
 _MIN_CROSSINGS = 2
@@ -105,8 +106,9 @@ def _turning_points(t, times, motion, damped, e0, e1, noise):
         excluded_reason=("",) * count, period=2 * math.pi / damped,
         equilibrium=float(e0 + e1 * (t[0] - times[0])), equilibrium_drift=float(e1),
         noise_sigma=float(noise), t_start=float(t[0]),
-        notes=(f"too few turning points for the averaged law: the {count} shown are those "
-               "of a damped cosine fitted to the samples, which starts the waveform fit",))
+        notes=(f"too few turning points for the averaged law: the {count} shown are not "
+               "measured but the fitted motion's, at the crest times of a damped cosine "
+               "fitted to the samples (which starts the waveform fit)",))
 
 
 def _start_fit(times, amplitudes, omega, beta):
@@ -126,3 +128,12 @@ def _start_fit(times, amplitudes, omega, beta):
         reduced_chi_square=nan, noise_from_residuals=False, selection=selection, t=times,
         y=amplitudes, y_fit=amplitudes, sigma=np.full(times.size, nan), q=None,
         q_stderr=None, q_parts=None)
+
+
+def with_fitted_amplitudes(turning, fit):
+    """``turning`` and the waveform ``fit`` started from it, with the stand-in amplitudes
+    (the damped cosine's) replaced by the fitted law's at the same times, and the period
+    by the fit's: what a figure or table of the turning points should show."""
+    amplitudes = np.asarray(fit.y_fit, dtype=float)
+    return (replace(turning, y=_frozen(amplitudes), period=2 * math.pi / fit.omega),
+            replace(fit, y=amplitudes))
