@@ -12,8 +12,9 @@
    large-sample chi-square limit (:func:`boundary_lrt_p_value`).
 3. "Cannot tell": when another model with as many terms fits within ``TIE_DELTA`` of the
    criterion, the record does not say which regime damps it: one model of a size is
-   preferred over another only on the evidence a term's test asks for (the chi-square of
-   one degree of freedom at ``alpha``; Burnham and Anderson's 2, "substantial support",
+   preferred over another only on evidence of the term tests' strength (the two-sided
+   chi-square of one degree of freedom at ``alpha``, a little above the boundary
+   mixture's 5.9; Burnham and Anderson's 2, "substantial support",
    let a pure decay falling 10 % over 10 cycles come out fluid or Coulomb, resolved, in 3
    of 20 records at noise 0.5 %). With one term, the record then fixes only a mean decay rate, and it is
    reported as constant Q (model ``b``, Handbook's "universal" damping) with
