@@ -14,9 +14,9 @@
    criterion, the record does not say which regime damps it: one model of a size is
    preferred over another only on evidence of the term tests' strength (the two-sided
    chi-square of one degree of freedom at ``alpha``, a little above the boundary
-   mixture's 5.9; Burnham and Anderson's 2, "substantial support",
-   let a pure decay falling 10 % over 10 cycles come out fluid or Coulomb, resolved, in 3
-   of 20 records at noise 0.5 %). With one term, the record then fixes only a mean decay rate, and it is
+   mixture's 5.9; Burnham and Anderson's 2, "substantial support", let a pure decay
+   falling 10 % over 10 cycles come out fluid or Coulomb, resolved, in 3 of 20 records at
+   noise 0.5 %). With one term, the record then fixes only a mean decay rate, and it is
    reported as constant Q (model ``b``, Handbook's "universal" damping) with
    ``resolved = False``; with two, the model the criterion prefers is reported, also with
    ``resolved = False``.
