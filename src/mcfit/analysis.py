@@ -245,7 +245,7 @@ def fit_both_forms(t, x, turning, start_fit, *, criterion="aicc", forced=None):
     if len(fits) == 1:
         (form, only), = fits.items()
         return replace(only, damping_form_reason="the only form with the model asked for")
-    scores = {form: _selected_aicc(fit) for form, fit in fits.items()}
+    scores = {form: _selected(fit).aicc for form, fit in fits.items()}
     best, other = sorted(scores, key=scores.get)
     gap = scores[other] - scores[best]
     names = {"amplitude": "Eq. 20.55's amplitude forms", "velocity": "the velocity forms "
@@ -267,8 +267,9 @@ def fit_both_forms(t, x, turning, start_fit, *, criterion="aicc", forced=None):
         f"{gap:.3g})"))
 
 
-def _selected_aicc(fit):
-    return next(c.aicc for c in fit.candidates if c.model == fit.model)
+def _selected(fit):
+    """The candidate of the model ``fit`` reports."""
+    return next(c for c in fit.candidates if c.model == fit.model)
 
 
 def _unresolved(fit):
@@ -304,8 +305,7 @@ def describes_waveform(waveform) -> bool:
     reduced = waveform.reduced_chi_square
     if not math.isfinite(reduced) or waveform.status != "ok":
         return False
-    selected = next(c for c in waveform.candidates if c.model == waveform.model)
-    return not misfit_warning(reduced, waveform.n_points - selected.n_params)
+    return not misfit_warning(reduced, waveform.n_points - _selected(waveform).n_params)
 
 
 def _misfit_warning(waveform):
@@ -402,7 +402,7 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
             if getattr(chosen, "method", None) != getattr(fit, "method", None):
                 chosen = with_large_swing_warning(chosen, turning, degrees)
             fit = chosen
-        if turning.warnings and fit.model not in ("power",):
+        if turning.warnings and fit.model != "power":
             fit = _unresolved(fit)  # a beat or disturbance was left out: no confident verdict
     except McfitError as error:
         return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)

@@ -83,37 +83,33 @@ class _Waveform:
 
     def _with_jacobian(self, p):
         """x at ``p``, and (p, the Jacobian of the residuals) by forward differences of the
-        motion from one solution (:func:`mcfit.phase_plane.phase_plane_differences`);
-        offset and drift enter linearly."""
+        motion (:meth:`_motion_changes`); offset and drift enter linearly."""
         tau = self.t - self.t0
         steps = 1e-7 * np.maximum(np.abs(p), self.typical)
         moved = [0, 1, 2] + list(range(5, p.size))
-        motion, changes = phase_plane_differences(tau, self._motion(p[None])[0],
-                                                  self._motion(np.diag(steps)[moved]),
-                                                  self.memory)
+        motion, changes = self._motion_changes(tau, p, steps, moved)
         jacobian = np.empty((self.t.size, p.size))
         jacobian[:, moved] = changes.T / steps[moved]
         jacobian[:, 3] = 1.0
         jacobian[:, 4] = tau
         return motion + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
 
+    def _motion_changes(self, tau, p, steps, moved):
+        """The motion at ``p`` and its changes when each parameter of ``moved`` moves by
+        its step, from one solution (:func:`mcfit.phase_plane.phase_plane_differences`)."""
+        return phase_plane_differences(tau, self._motion(p[None])[0],
+                                       self._motion(np.diag(steps)[moved]), self.memory)
+
 
 class _VelocityWaveform(_Waveform):
     """As :class:`_Waveform` for the velocity forms: viscous b and sliding friction c, the
-    motion in closed form, the Jacobian by forward differences."""
+    motion in closed form, each change a solution of its own."""
 
-    def _with_jacobian(self, p):
-        tau = self.t - self.t0
-        steps = 1e-7 * np.maximum(np.abs(p), self.typical)
-        x = self._x(tau, p)
-        jacobian = np.empty((self.t.size, p.size))
-        for i in (0, 1, 2, *range(5, p.size)):
-            moved = p.copy()
-            moved[i] += steps[i]
-            jacobian[:, i] = (self._x(tau, moved) - x) / steps[i]
-        jacobian[:, 3] = 1.0
-        jacobian[:, 4] = tau
-        return x + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
+    def _motion_changes(self, tau, p, steps, moved):
+        motion = self._x(tau, p)
+        changes = np.array([self._x(tau, p + steps[i] * np.eye(p.size)[i]) - motion
+                            for i in moved])
+        return motion, changes
 
     def _x(self, tau, p):
         terms = dict(zip(self.terms, p[5:]))
