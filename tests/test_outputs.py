@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner
 
 from mcfit.cli import cli
-from mcfit.fit.decay_fit import misfit_warning
+from mcfit.fit.diagnostics import misfit_warning
 from mcfit.report import BOOTSTRAP_CSV_COLUMNS, CSV_COLUMNS, TURNING_POINT_COLUMNS
 
 SAMPLES = Path(__file__).parents[1] / "sample_data"

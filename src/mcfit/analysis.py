@@ -9,21 +9,17 @@ import numpy as np
 
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
-from mcfit.fit.decay_fit import fit_model_values, misfit_warning
+from mcfit.fit.decay_fit import fit_model_values
+from mcfit.fit.diagnostics import misfit_warning
 from mcfit.fit.models import terms_of
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
-from mcfit.options import FIT_METHODS, check_fit_options
+from mcfit.options import check_fit_options
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "crop_record", "failed_analysis",
            "fit_turning_points", "fit_by_method", "with_large_swing_warning"]
-
-# How the coefficients are fitted: "auto" takes the waveform fit only where the averaged
-# law's bias would be a noticeable part of the statistical error.
-METHODS = FIT_METHODS
-
 
 @dataclass(frozen=True)
 class Analysis:
@@ -187,31 +183,47 @@ def with_large_swing_warning(fit, turning: TurningPoints, degrees=False):
 
 def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", model=None):
     """``fit`` (of the turning points), or the waveform fit of ``record`` by the equation of
-    motion when ``method`` asks for it or, for "auto", when the averaged law's predicted
-    bias exceeds :data:`mcfit.model_error.LIMIT` standard errors. The waveform is fitted
-    with the damping in each physical form (:func:`fit_both_forms`). The result says
-    which it is and why (``method``, ``method_reason``); a misfit is never silent."""
+    motion, as ``method`` (a key of :data:`METHODS`) decides. The result says which it is
+    and why (``method``, ``method_reason``); a misfit is never silent."""
+    check_fit_options(method=method)
+    if fit.model == "power":
+        return fit
+    if method != "turning-points":
+        why = _why_no_waveform_fit(record, fit)
+        if why:
+            return replace(fit, method_reason=why)
+    return METHODS[method](record, turning, fit, criterion=criterion, model=model)
+
+
+def _why_no_waveform_fit(record, fit):
+    if record.kind != "waveform":
+        return "the record is a table of turning points"
+    if fit.domain != "time" or fit.omega is None:
+        return "no waveform fit for this model or domain"
+    return None
+
+
+def _turning_point_method(record, turning, fit, **_):
+    return replace(fit, method_reason="asked for")
+
+
+def _waveform_method(record, turning, fit, *, criterion, model):
+    waveform = _waveform_fit(record, turning, fit, criterion, model)
+    warned = () if describes_waveform(waveform) else (_misfit_warning(waveform),)
+    return replace(waveform, method_reason="asked for", warnings=waveform.warnings + warned)
+
+
+def _auto_method(record, turning, fit, *, criterion, model):
+    """The turning-point fit where the averaged law's predicted bias is within
+    :data:`mcfit.model_error.LIMIT` standard errors; else the waveform fit, unless it
+    misfits where the turning-point fit does not."""
     from mcfit.model_error import LIMIT, averaged_law_bias
 
-    check_fit_options(method=method)
-
-    usable = (record.kind == "waveform" and fit.domain == "time" and fit.model != "power"
-              and fit.omega is not None)
-    if method == "turning-points" or not usable:
-        why = "asked for" if method == "turning-points" else (
-            "the record is a table of turning points" if record.kind != "waveform"
-            else "no waveform fit for this model or domain")
-        return replace(fit, method_reason=why) if fit.model != "power" else fit
     error = averaged_law_bias(record.t, turning, fit)
     said = _predicted_bias(error, fit)
-    if method == "auto" and error.largest <= LIMIT:
+    if error.largest <= LIMIT:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
-    x = _without_steady_line(record.t, record.x, turning.steady_line)
-    waveform = fit_both_forms(record.t, x, turning, fit, criterion=criterion, forced=model)
-    if method == "waveform":
-        warned = () if describes_waveform(waveform) else (_misfit_warning(waveform),)
-        return replace(waveform, method_reason="asked for",
-                       warnings=waveform.warnings + warned)
+    waveform = _waveform_fit(record, turning, fit, criterion, model)
     if describes_waveform(waveform):
         return replace(waveform, method_reason=f"{said}: fitted by the equation of motion")
     if not misfit_warning(fit.reduced_chi_square, fit.n_points - 1 - len(fit.selection.terms)):
@@ -227,19 +239,36 @@ def fit_by_method(record, turning, fit, method="auto", *, criterion="aicc", mode
             f"chi-square {fit.reduced_chi_square:.3g}): the regimes are not resolved",)))
 
 
+# How each value of ``method`` (mcfit.options.FIT_METHODS) chooses the reported fit: "auto"
+# takes the waveform fit only where the averaged law's bias would be a noticeable part of
+# the statistical error.
+METHODS = {"auto": _auto_method, "turning-points": _turning_point_method,
+           "waveform": _waveform_method}
+
+
+def _waveform_fit(record, turning, fit, criterion, model):
+    """The waveform fit in the form the record supports, started from the turning-point
+    ``fit``, of the signal without the hum the turning-point search took out."""
+    from mcfit.fit.waveform import WaveformStart
+
+    x = _without_steady_line(record.t, record.x, turning.steady_line)
+    return fit_both_forms(record.t, x, turning, WaveformStart.of_fit(fit),
+                          criterion=criterion, forced=model)
+
+
 # Selected models of the two forms whose AICc differ by no more than this cannot be told
 # apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
 FORM_TIE = 10.0
 
 
-def fit_both_forms(t, x, turning, start_fit, *, criterion="aicc", forced=None):
+def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     """The waveform fit in the form of the damping forces the record supports: Eq. 20.55's
     amplitude forms or the velocity forms (:data:`mcfit.fit.waveform.FORMS`), by the AICc
     of the model each selects; ``damping_form`` is "cannot tell" within
     :data:`FORM_TIE`, and the lower one is reported."""
     from mcfit.fit.waveform import FORMS, fit_waveform
 
-    fits = {form: fit_waveform(t, x, turning, start_fit, criterion=criterion, forced=forced,
+    fits = {form: fit_waveform(t, x, turning, start, criterion=criterion, forced=forced,
                                form=form)
             for form, (_, offered) in FORMS.items() if forced is None or forced in offered}
     if len(fits) == 1:
@@ -301,7 +330,7 @@ def _without_steady_line(t, x, line):
 
 def describes_waveform(waveform) -> bool:
     """Whether the equation of motion fits the waveform within its noise: converged, with
-    a reduced chi-square not far above 1 (:func:`mcfit.fit.decay_fit.misfit_warning`)."""
+    a reduced chi-square not far above 1 (:func:`mcfit.fit.diagnostics.misfit_warning`)."""
     reduced = waveform.reduced_chi_square
     if not math.isfinite(reduced) or waveform.status != "ok":
         return False

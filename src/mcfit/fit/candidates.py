@@ -4,7 +4,7 @@ One solver path. Each candidate is ranked with MINPACK's Levenberg-Marquardt whi
 parameters stay > 0 (it costs almost nothing per iteration); where the optimum lies on a
 bound, scipy's bounded trust-region-reflective solver takes over (:func:`_rank`). The model
 reported is refitted with lmfit, which drives the same trust-region-reflective solver on the
-same residuals and Jacobian (:func:`fit_reported`). The empty model, constant amplitude, is
+same residuals and Jacobian (:func:`fit_reported`, by :mod:`mcfit.fit.reported`). The empty model, constant amplitude, is
 a weighted mean.
 """
 
@@ -22,14 +22,11 @@ from scipy import optimize
 
 from mcfit.fit.models import NONE, terms_of
 from mcfit.fit.problem import Problem, ScaledRecord
+from mcfit.fit.reported import TOLERANCES, solve_reported
 
 __all__ = ["Candidate", "ReportedFit", "fit_candidates", "fit_reported", "make_candidate",
-           "information_criteria", "lmfit_least_squares"]
+           "information_criteria"]
 
-# Stop when chi-square changes by < 1e-10 relative: 1e-5 of a standard error in the
-# parameters, and far enough above chi-square's rounding floor (~1e-15) that the same
-# record in other units stops after the same iterations.
-_TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
 # Ranking needs chi-square to far below 1 (AICc differences, likelihood ratios): 1e-8 of it
 # is ample, and saves MINPACK one or two iterations per candidate.
 _RANKING_TOLERANCES = {"ftol": 1e-8, "xtol": 1e-8, "gtol": 1e-8}
@@ -194,7 +191,7 @@ def _bounded(problem, start):
     result = optimize.least_squares(problem.residual, np.maximum(start[problem.columns], 0.0),
                                     jac=problem.jacobian, bounds=(0.0, np.inf), method="trf",
                                     x_scale="jac", max_nfev=4000 * (len(problem.free) + 1),
-                                    **_TOLERANCES)
+                                    **TOLERANCES)
     return (problem.values(result.x), problem.chi_square(result.x), bool(result.success),
             int(result.nfev))
 
@@ -241,25 +238,14 @@ def _levenberg_marquardt(problem, start):
 
 
 def fit_reported(scaled: ScaledRecord, candidate: Candidate) -> ReportedFit:
-    """The reported model fitted with lmfit, started at its ranking solution refined by
-    Gauss-Newton (so lmfit converges at once)."""
+    """The reported model fitted with lmfit (:func:`mcfit.fit.reported.solve_reported`),
+    started at its ranking solution refined by Gauss-Newton (so lmfit converges at once)."""
     problem = Problem(scaled, candidate.terms)
     start, refining = _gauss_newton_refined(problem, candidate.internal)
-    params = _parameters(problem.free, start[problem.columns])
-
-    def residual(p):
-        return problem.residual([p[k].value for k in problem.free])
-
-    def jacobian(p):
-        return problem.jacobian([p[k].value for k in problem.free])
-
-    result = lmfit_least_squares(residual, jacobian, params)
-    free_values = [result.params[k].value for k in problem.free]
-    chi_square = float(result.chisqr) * problem.chi_square_scale
-    return ReportedFit(problem.values(free_values), problem.free,
-                       _covariance(problem, free_values, result, chi_square), chi_square,
-                       bool(result.success), candidate.evaluations + refining + int(result.nfev),
-                       problem)
+    solution = solve_reported(problem, _parameters(problem.free, start[problem.columns]))
+    return ReportedFit(problem.values(solution.x), problem.free, solution.covariance,
+                       solution.chi_square, solution.success,
+                       candidate.evaluations + refining + solution.evaluations, problem)
 
 
 # lmfit Parameters by tuple of free names, one dictionary per thread (Dask workers may run
@@ -279,32 +265,6 @@ def _parameters(free, values):
     for name, value in zip(free, values):
         params[name].value = float(value)
     return params
-
-
-def lmfit_least_squares(residual, jacobian, params):
-    """lmfit's bounded least squares (scipy's trust-region-reflective solver) with the
-    analytic Jacobian and mcfit's tolerances: the solver of every reported fit."""
-    with warnings.catch_warnings():
-        # lmfit takes the square root of its covariance's diagonal, which rounding makes
-        # slightly negative where a parameter is nearly unconstrained (Q of 1e6, or a
-        # constant record): numpy's warning there is lmfit's, and the caller checks covar.
-        warnings.filterwarnings("ignore", category=RuntimeWarning, module=r"lmfit\.")
-        return lmfit.Minimizer(residual, params).minimize(
-            method="least_squares", jac=jacobian, x_scale="jac", **_TOLERANCES)
-
-
-def _covariance(problem, free_values, result, chi_square):
-    """The parameters' covariance in internal units: lmfit's (J^T J)^-1 times the reduced
-    chi-square where it is sound, else the same from a pseudo-inverse (which stays finite
-    when J^T J is singular to rounding)."""
-    dof = problem.t.size - len(problem.free)
-    if dof <= 0:
-        return None
-    covar = getattr(result, "covar", None)
-    if covar is not None and np.all(np.isfinite(covar)) and np.all(np.diag(covar) >= 0):
-        return covar
-    unscaled = problem.covariance(free_values)
-    return None if unscaled is None else unscaled * chi_square / dof
 
 
 def _gauss_newton_refined(problem, values):

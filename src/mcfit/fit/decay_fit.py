@@ -11,19 +11,17 @@ from mcfit import decay
 from mcfit.errors import FitError
 from mcfit.fit import uncertainty
 from mcfit.fit.candidates import fit_candidates, fit_reported, make_candidate
+from mcfit.fit.diagnostics import fit_warnings, misfit_warning, no_decay_warning
 from mcfit.fit.models import CRITERIA, MODELS, NONE, POWER, REGIME_NAMES, TERMS, \
-    parse_model, regime_list, terms_of
+    models_to_fit, parse_model
 from mcfit.fit.power import PowerLawFit, fit_power_law
 from mcfit.fit.problem import PARAMETERS, ScaledRecord
 from mcfit.fit.reprs import fit_repr
 from mcfit.fit.selection import LRT_ALPHA, Selection, select_model
 
-__all__ = ["DecayFit", "fit_decay", "MIN_POINTS", "tie_warning", "diagnose", "misfit_warning",
-           "no_decay_warning"]
+__all__ = ["DecayFit", "fit_decay", "MIN_POINTS"]
 
 MIN_POINTS = 4
-# |correlation| above this between two kept parameters: the record hardly tells them apart.
-DEGENERATE_CORRELATION = 0.98
 # Amplitudes and times beyond these cannot be squared and multiplied in float64.
 _LARGEST = 1e30
 _SMALLEST = 1e-30
@@ -153,7 +151,7 @@ def fit_decay(t, y, sigma=None, *, period=None, period_sigma=None, domain="time"
     if forced == POWER:
         return fit_power_law(record.scaled, t, y, sigma, omega, domain, criterion,
                              noise_from_residuals)
-    candidates = fit_candidates(record.scaled, _models_to_fit(forced))
+    candidates = fit_candidates(record.scaled, models_to_fit(forced))
     selection = select_model(candidates, criterion, alpha, n_points=t.size, forced=forced)
     fit = _reported(record, candidates, selection)
     if bootstrap:
@@ -250,15 +248,6 @@ def _angular_frequency(domain, period, period_sigma):
     return 2 * math.pi / period, relative
 
 
-def _models_to_fit(forced):
-    """All eight models, or a forced one and those one term smaller (for its tests)."""
-    if forced is None:
-        return MODELS
-    terms = terms_of(forced)
-    return tuple(m for m in MODELS if m == forced or (
-        len(terms_of(m)) == len(terms) - 1 and set(terms_of(m)) <= set(terms)))
-
-
 def _reported(record, candidates, selection):
     """The selected model refitted with lmfit, with its errors, Q and warnings."""
     t, y, scaled, omega = record.t, record.y, record.scaled, record.omega
@@ -274,9 +263,8 @@ def _reported(record, candidates, selection):
     sigma = record.sigma
     if record.noise_from_residuals and math.isfinite(reduced):
         sigma = sigma * math.sqrt(reduced)  # the amplitude noise the residuals show
-    warnings = (selection.warnings() + tie_warning(selection, y_fit)
-                + diagnose(selection.terms, values, errors, (y_fit - y) / record.sigma,
-                            reported.success)
+    warnings = (fit_warnings(selection, y_fit, values, errors, (y_fit - y) / record.sigma,
+                             reported.success)
                 + ([] if record.noise_from_residuals else misfit_warning(reduced, dof)))
     q = q_stderr = q_parts = q_summary = q_bound = None
     if omega is not None and selection.model == NONE:
@@ -286,11 +274,9 @@ def _reported(record, candidates, selection):
         warnings.append(no_decay_warning(float(t[-1] - t[0]),
                                           "s" if record.domain == "time" else "cycles", q_bound))
     if omega is not None and selection.model != NONE:
-        q, q_stderr = uncertainty.q_with_stderr(t - t[0], values, errors.covariance,
-                                                reported.free, omega, record.omega_sigma)
-        parts = decay.quality_parts(y_fit, omega, values["a"], values["b"], values["c"])
-        q_parts = {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}
-        q_summary = uncertainty.summarise_q(q, q_stderr)
+        q, q_stderr, q_parts, q_summary = uncertainty.q_of_fit(
+            t - t[0], y_fit, values, errors.covariance, reported.free, omega,
+            record.omega_sigma)
     return DecayFit(
         status="ok" if reported.success else "error",
         message=None if reported.success else "the fit did not converge",
@@ -306,71 +292,6 @@ def _reported(record, candidates, selection):
         warnings=tuple(warnings))
 
 
-def tie_warning(selection, y_fit):
-    """The "cannot tell" warning, with the amplitude range the record spans."""
-    if selection.resolved or selection.forced:
-        return []
-    tied = (selection.preferred,) + selection.ties
-    if len(terms_of(selection.preferred)) == 1:
-        listed = regime_list(k for k in TERMS if any(k == terms_of(m) for m in tied))
-        said = "reported as constant Q"
-    else:
-        names = [regime_list(terms_of(m)) for m in tied]
-        listed = ", ".join(names[:-1]) + " or " + names[-1]
-        said = f"reported as {names[0]}, which {selection.criterion.upper()} prefers"
-    low, high = float(np.min(y_fit)), float(np.max(y_fit))
-    digits = max(3, 2 + int(math.ceil(-math.log10(max((high - low) / high, 1e-12)))))
-    return [f"the record spans amplitudes {low:.{digits}g} to {high:.{digits}g}: {listed} "
-            f"damping fit it equally well; {said}"]
-
-
-def diagnose(terms, values, errors, weighted_residuals, converged):
-    """Warnings a careful reader needs next to the numbers, the residuals' lag-one
-    autocorrelation among them (of amplitudes, or of samples in a waveform fit)."""
-    warnings = []
-    if not converged:
-        warnings.append("the least-squares fit did not report convergence")
-    n = weighted_residuals.size
-    r1 = _lag_one_autocorrelation(weighted_residuals)
-    if r1 * math.sqrt(n) > 3.0:
-        warnings.append(f"residuals are correlated (lag-1 autocorrelation {r1:.2f}): the "
-                        "standard errors understate the uncertainty, or the model misses a "
-                        "systematic effect")
-    for k in terms:
-        error = errors.stderr.get(k)
-        if values[k] == 0.0 or (error is not None and values[k] < 1e-8 * max(error, 1e-300)):
-            warnings.append(f"{REGIME_NAMES[k]} coefficient {k} sits on its bound 0")
-    for pair, r in errors.correlation.items():
-        if abs(r) > DEGENERATE_CORRELATION and "y0" not in pair:
-            warnings.append(f"parameters {pair.replace(',', ' and ')} are nearly degenerate "
-                            f"(correlation {r:+.3f}): the record hardly separates them")
-    return warnings
-
-
-def no_decay_warning(span, unit, q_bound):
-    bound = f" (Q > {q_bound:.2g} at 95 %)" if q_bound is not None else ""
-    return (f"the amplitude does not decay over the {span:.4g} {unit} of the record{bound}: "
-            "either the damping is too weak to show in it or this is not a free decay (a "
-            "driven steady state looks like this)")
-
-
-def misfit_warning(reduced_chi_square, dof):
-    """A warning when the reduced chi-square is far above 1 (beyond 1 + 5*sqrt(2/dof) and
-    above 2): the law misses the amplitudes by more than their own noise."""
-    if not (dof > 0 and reduced_chi_square > max(2.0, 1.0 + 5.0 * math.sqrt(2.0 / dof))):
-        return []
-    return [f"reduced chi-square {reduced_chi_square:.3g} is far above 1: the law does not "
-            "describe the amplitudes within their noise (a disturbed start, a beat with a "
-            "second mode, or noise underestimated); the standard errors are scaled by its "
-            "square root"]
-
-
-def _lag_one_autocorrelation(residuals):
-    r = residuals - residuals.mean()
-    denominator = float(np.dot(r, r))
-    return float(np.dot(r[1:], r[:-1]) / denominator) if denominator > 0 else 0.0
-
-
 def _with_bootstrap(fit, record, candidates, alpha, count, rng):
     """``fit`` with residual-bootstrap 95 % intervals of y0, a, b, c and Q.
 
@@ -380,7 +301,7 @@ def _with_bootstrap(fit, record, candidates, alpha, count, rng):
     """
     scaled, selection = record.scaled, fit.selection
     if selection.forced:
-        source, models = candidates[selection.model], _models_to_fit(selection.model)
+        source, models = candidates[selection.model], models_to_fit(selection.model)
     else:
         source, models = candidates["abc"], MODELS
     y_model = decay.amplitude(record.t - record.t[0], *(source.values[k] for k in PARAMETERS))

@@ -14,11 +14,8 @@ import numpy as np
 from scipy import optimize
 
 from mcfit.errors import RecordError
-from mcfit.fit.candidates import Candidate
-from mcfit.fit.decay_fit import DecayFit
-from mcfit.fit.models import MODELS, REGIME_NAMES, TERMS, terms_of
-from mcfit.fit.selection import Selection
-from mcfit.fit.waveform import sample_noise
+from mcfit.fit.models import MODELS
+from mcfit.fit.waveform import WaveformStart, sample_noise
 from mcfit.turning.result import TurningPoints, _frozen
 from mcfit.viscous_motion import viscous_motion
 
@@ -31,7 +28,7 @@ _VISIBLE_Z = 3.0
 
 
 def few_swings_start(t, x, source="record"):
-    """(turning points, start fit) of a damped cosine fitted to ``x(t)`` from its largest
+    """(turning points, :class:`WaveformStart`) of a damped cosine fitted to ``x(t)`` from its largest
     swing on, for :func:`mcfit.fit.waveform.fit_waveform`.
 
     Raises :class:`mcfit.errors.RecordError` where the record has no two zero crossings
@@ -112,22 +109,11 @@ def _turning_points(t, times, motion, damped, e0, e1, noise):
 
 
 def _start_fit(times, amplitudes, omega, beta):
-    """A :class:`DecayFit` carrying the start values of every candidate model (the
-    damped cosine's y0 and b, the other terms 0): what the waveform fit starts from."""
+    """The waveform fit's start: every candidate model from the damped cosine's y0 and b
+    (the other terms 0)."""
     values = {"y0": float(amplitudes[0]), "a": 0.0, "b": float(beta), "c": 0.0}
-    candidates = tuple(Candidate(m, 1 + len(terms_of(m)), 0.0, 0.0, 0.0, True, dict(values), 0)
-                       for m in MODELS)
-    selection = Selection(model="b", preferred="b", resolved=True, criterion="aicc",
-                          alpha=0.0, forced=False, p_values={})
-    nan = float("nan")
-    return DecayFit(
-        status="ok", message=None, model="b", domain="time", criterion="aicc",
-        t0=float(times[0]), omega=float(omega), values=values, stderr=dict.fromkeys(values),
-        correlation={}, regimes={REGIME_NAMES[k]: k == "b" for k in TERMS},
-        lrt_p_values={}, candidates=candidates, n_points=times.size, rms=nan,
-        reduced_chi_square=nan, noise_from_residuals=False, selection=selection, t=times,
-        y=amplitudes, y_fit=amplitudes, sigma=np.full(times.size, nan), q=None,
-        q_stderr=None, q_parts=None)
+    return WaveformStart({m: dict(values) for m in MODELS}, dict.fromkeys(MODELS, 0.0), "b",
+                         float(omega), times, amplitudes, np.full(times.size, np.nan))
 
 
 def with_fitted_amplitudes(turning, fit):

@@ -12,7 +12,7 @@ import itertools
 from mcfit.options import CRITERIA, parse_model
 
 __all__ = ["TERMS", "NONE", "POWER", "MODELS", "REGIME_NAMES", "CRITERIA", "terms_of",
-           "parse_model", "regime_list"]
+           "parse_model", "regime_list", "models_to_fit"]
 
 TERMS = ("a", "b", "c")
 NONE = "none"  # constant amplitude: no damping
@@ -32,3 +32,12 @@ def regime_list(terms) -> str:
     """The regimes of ``terms`` for a sentence: "fluid, hysteretic and Coulomb"."""
     names = [REGIME_NAMES[k].replace("coulomb", "Coulomb") for k in terms]
     return ", ".join(names[:-1]) + " and " + names[-1] if len(names) > 1 else "".join(names)
+
+
+def models_to_fit(forced=None) -> tuple:
+    """All eight models, or a ``forced`` one and those one term smaller (for its tests)."""
+    if forced is None:
+        return MODELS
+    terms = set(terms_of(forced))
+    return tuple(m for m in MODELS if m == forced or (
+        len(terms_of(m)) == len(terms) - 1 and set(terms_of(m)) <= terms))

@@ -34,19 +34,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import lmfit
 import numpy as np
 from scipy import integrate, optimize, special
 
 from mcfit.errors import FitError
-from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
-from mcfit.fit.decay_fit import (MIN_POINTS, DecayFit, diagnose, misfit_warning,
-                                 no_decay_warning, tie_warning)
-from mcfit.fit.models import CRITERIA, MODELS, NONE, POWER, REGIME_NAMES, TERMS, \
+from mcfit.fit.candidates import Candidate, information_criteria
+from mcfit.fit.decay_fit import MIN_POINTS, DecayFit
+from mcfit.fit.diagnostics import fit_warnings, misfit_warning, no_decay_warning
+from mcfit.fit.models import CRITERIA, NONE, POWER, REGIME_NAMES, TERMS, models_to_fit, \
     parse_model, terms_of
 from mcfit.fit.problem import PARAMETERS
+from mcfit.fit.reported import TOLERANCES, lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
-from mcfit.fit.uncertainty import ParameterErrors, summarise_q
+from mcfit.fit.uncertainty import physical_errors, summarise_q
 
 __all__ = ["PendulumFit", "fit_pendulum", "geometric_factors", "period_ratio",
            "fundamental_amplitude",
@@ -58,7 +58,6 @@ _LARGEST_ANGLE = 3.1
 # Below this amplitude the elliptic forms lose digits to cancellation: series instead.
 _SERIES_BELOW = 0.02
 _RTOL, _ATOL = 1e-11, 1e-14
-_TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
 _COLUMN = {name: i for i, name in enumerate(PARAMETERS)}
 
 
@@ -194,6 +193,7 @@ class _Problem:
     def __init__(self, t, theta, weights, terms):
         self.t, self.theta, self.weights = t, theta, weights
         self.weight_scale = float(np.max(weights))
+        self.chi_square_scale = self.weight_scale**2
         self.free = ("y0",) + tuple(terms)
         self.columns = [_COLUMN[k] for k in self.free]
         self._key = self._solution = None
@@ -325,9 +325,7 @@ def fit_pendulum(t, y, sigma=None, *, period=None, period_sigma=None, signs=None
     span = float(t[-1] - t[0])
     tau = (t - t[0]) / span
     weights = 1.0 / (sigma * scale)
-    models = MODELS if forced is None else tuple(
-        m for m in MODELS if m == forced or (len(terms_of(m)) == len(terms_of(forced)) - 1
-                                             and set(terms_of(m)) <= set(terms_of(forced))))
+    models = models_to_fit(forced)
     candidates = _fit_candidates(tau, theta, weights, models, span, scale)
     selection = select_model(candidates, criterion, alpha, n_points=t.size, forced=forced)
     return _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selection,
@@ -402,7 +400,7 @@ def _bounded(problem, start):
         result = optimize.least_squares(problem.residual, x0, jac=problem.jacobian,
                                         bounds=(0.0, _upper_bounds(problem)), method="trf",
                                         x_scale="jac", max_nfev=200 * len(problem.free),
-                                        **_TOLERANCES)
+                                        **TOLERANCES)
     except (ValueError, FloatingPointError):
         return problem.values(x0), math.inf, False
     return problem.values(result.x), problem.chi_square(result.x), bool(result.success)
@@ -433,47 +431,27 @@ def _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selecti
     chosen = candidates[selection.model]
     if selection.model == NONE:
         free, internal, covariance = ("y0",), chosen.internal, None
-        chi_square, success, evaluations = chosen.chi_square, True, 1
-        dof = t.size - 1
-        if dof > 0:
-            covariance = np.array([[chi_square / dof / float(np.sum(weights**2))]])
+        chi_square, success = chosen.chi_square, True
+        if t.size > 1:
+            covariance = np.array([[chi_square / (t.size - 1) / float(np.sum(weights**2))]])
     else:
         problem = _Problem(tau, theta, weights, selection.model)
-        params = lmfit.Parameters()
-        for name, value in zip(problem.free, chosen.internal[problem.columns]):
-            params.add(name, value=max(float(value), 0.0), min=0.0,
-                       max=_LARGEST_ANGLE if name == "y0" else np.inf)
-        result = lmfit_least_squares(
-            lambda p: problem.residual([p[k].value for k in problem.free]),
-            lambda p: problem.jacobian([p[k].value for k in problem.free]), params)
-        x = np.array([result.params[k].value for k in problem.free])
-        free, internal = problem.free, problem.values(x)
-        chi_square, success = problem.chi_square(x), bool(result.success)
-        evaluations = chosen.evaluations + problem.evaluations
-        dof = t.size - len(free)
-        covariance = None
-        if dof > 0:
-            covariance = getattr(result, "covar", None)
-            if covariance is None or not np.all(np.isfinite(covariance)) or \
-                    np.any(np.diag(covariance) < 0):
-                covariance = problem.covariance(x) * chi_square / dof
+        upper = _upper_bounds(problem)
+        solution = solve_reported(problem, lmfit_parameters(
+            problem.free, np.maximum(chosen.internal[problem.columns], 0.0),
+            np.zeros(upper.size), upper))
+        free, internal = problem.free, problem.values(solution.x)
+        chi_square, success, covariance = (solution.chi_square, solution.success,
+                                           solution.covariance)
         candidates = {**candidates, selection.model: _candidate(
-            selection.model, internal, chi_square, success, evaluations, t.size, span,
-            scale, problem)}
+            selection.model, internal, chi_square, success,
+            chosen.evaluations + problem.evaluations, t.size, span, scale, problem)}
     dof = t.size - len(free)
     reduced = chi_square / dof if dof > 0 else math.nan
     factors = _physical_factors(span, scale)[[_COLUMN[k] for k in free]]
-    stderr = dict.fromkeys(PARAMETERS)
-    correlation, physical_covariance = {}, None
-    if covariance is not None:
-        physical_covariance = covariance * np.outer(factors, factors)
-        errors = np.sqrt(np.maximum(np.diag(physical_covariance), 0.0))
-        stderr.update({k: float(e) for k, e in zip(free, errors)})
-        for i, first in enumerate(free):
-            for j, second in enumerate(free[i + 1:], start=i + 1):
-                if errors[i] > 0 and errors[j] > 0:
-                    correlation[f"{first},{second}"] = float(
-                        physical_covariance[i, j] / (errors[i] * errors[j]))
+    errors = physical_errors(free, covariance, factors)
+    stderr, correlation, physical_covariance = (errors.stderr, errors.correlation,
+                                                errors.covariance)
     values = _physical(internal, span, scale)
     theta_fit, sensitivity = _amplitude_solution(tau, *internal)
     y_fit = theta_fit / scale
@@ -485,10 +463,7 @@ def _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selecti
         q, q_stderr, q_parts = _quality(theta_fit, sensitivity, internal, free, covariance,
                                         span, period0, period0_sigma)
         q_summary = summarise_q(q, q_stderr)
-    warnings = (selection.warnings() + tie_warning(selection, y_fit)
-                + diagnose(selection.terms, values,
-                            ParameterErrors(stderr, correlation, physical_covariance),
-                            (y_fit - y) / sigma, success)
+    warnings = (fit_warnings(selection, y_fit, values, errors, (y_fit - y) / sigma, success)
                 + ([] if noise_from_residuals else misfit_warning(reduced, dof))
                 + ([no_decay_warning(float(t[-1] - t[0]), "s", None)]
                    if selection.model == NONE else []))

@@ -9,7 +9,8 @@ import lmfit
 import numpy as np
 
 from mcfit import decay
-from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
+from mcfit.fit.candidates import Candidate, information_criteria
+from mcfit.fit.reported import lmfit_least_squares
 from mcfit.fit.models import POWER
 from mcfit.fit.reprs import fit_repr
 

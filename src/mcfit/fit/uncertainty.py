@@ -13,7 +13,7 @@ from scipy import special
 from mcfit import decay
 from mcfit.fit.problem import PARAMETERS, Problem
 
-__all__ = ["ParameterErrors", "parameter_errors", "q_with_stderr", "summarise_q",
+__all__ = ["ParameterErrors", "parameter_errors", "physical_errors", "q_of_fit", "q_with_stderr", "summarise_q",
            "q_lower_bound", "bootstrap_intervals", "interval_factor"]
 
 _COLUMN = {name: i for i, name in enumerate(PARAMETERS)}
@@ -32,10 +32,16 @@ class ParameterErrors:
 def parameter_errors(scaled, free, covariance) -> ParameterErrors:
     """Physical standard errors and correlations from the free parameters' covariance in
     internal units."""
+    return physical_errors(free, covariance, scaled.physical_factors()[[_COLUMN[k] for k in free]])
+
+
+def physical_errors(free, covariance, factors=1.0) -> ParameterErrors:
+    """Standard errors and correlations of the parameters ``free`` (names of y0, a, b, c)
+    from their covariance, each multiplied by its factor to physical units."""
     stderr = dict.fromkeys(PARAMETERS)
     if covariance is None:
         return ParameterErrors(stderr, {}, None)
-    factors = scaled.physical_factors()[[_COLUMN[k] for k in free]]
+    factors = np.broadcast_to(np.asarray(factors, dtype=float), (len(free),))
     physical = covariance * np.outer(factors, factors)
     errors = np.sqrt(np.maximum(np.diag(physical), 0.0))
     stderr.update({k: float(e) for k, e in zip(free, errors)})
@@ -92,6 +98,16 @@ def summarise_q(q, q_stderr):
         error = q_stderr[i] if q_stderr is not None else math.nan
         out[f"{key}_stderr"] = float(error) if math.isfinite(error) else None
     return out
+
+
+def q_of_fit(t, y_fit, values, covariance, free, omega, omega_relative_sigma=0.0):
+    """Q(t) at the turning points' times ``t`` (from t0) with its standard error, its
+    parts by regime at the fitted amplitudes ``y_fit`` and its summary: (q, q_stderr,
+    q_parts, q_summary)."""
+    q, q_stderr = q_with_stderr(t, values, covariance, free, omega, omega_relative_sigma)
+    parts = decay.quality_parts(y_fit, omega, values["a"], values["b"], values["c"])
+    q_parts = {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}
+    return q, q_stderr, q_parts, summarise_q(q, q_stderr)
 
 
 def q_lower_bound(scaled, y0, omega, omega_relative_sigma=0.0, confidence=0.95):

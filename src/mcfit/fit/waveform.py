@@ -19,9 +19,8 @@ and is not offered). At low Q they differ at order 1/Q; :data:`FORMS` lists them
 from __future__ import annotations
 
 import math
-from dataclasses import replace
+from dataclasses import dataclass, field
 
-import lmfit
 import numpy as np
 from scipy import optimize
 from scipy.stats import median_abs_deviation  # lmfit imports scipy.stats anyway
@@ -29,13 +28,16 @@ from scipy.stats import median_abs_deviation  # lmfit imports scipy.stats anyway
 from mcfit import decay
 from mcfit.errors import FitError
 from mcfit.fit import uncertainty
-from mcfit.fit.candidates import Candidate, information_criteria, lmfit_least_squares
+from mcfit.fit.candidates import Candidate, information_criteria
+from mcfit.fit.decay_fit import DecayFit
+from mcfit.fit.diagnostics import fit_warnings
 from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
+from mcfit.fit.reported import lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
 from mcfit.phase_plane import phase_plane_differences
 from mcfit.viscous_motion import coulomb_force, viscous_motion
 
-__all__ = ["FORMS", "fit_waveform"]
+__all__ = ["FORMS", "WaveformFit", "WaveformStart", "fit_waveform"]
 # Nuisance parameters of the waveform besides y0: phase, frequency, offset, drift.
 _NUISANCE = ("theta0", "omega", "e0", "e1")
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
@@ -54,10 +56,17 @@ class _Waveform:
     """The samples to fit, the residuals of the model x(t) and their Jacobian at a
     parameter vector (y0, theta0, omega, e0, e1, then the model's terms)."""
 
+    chi_square_scale = 1.0  # residuals in noise units: chi-square as it is
+
     def __init__(self, t, x, t0, terms, noise):
         self.t, self.x, self.t0, self.terms, self.noise = t, x, t0, terms, noise
-        self.names = ("y0",) + _NUISANCE + tuple(terms)
+        self.names = self.free = ("y0",) + _NUISANCE + tuple(terms)
         self.memory = {}  # the last solution of the motion starts the next
+
+    def covariance(self, parameters):
+        """Unscaled (J^T J)^-1 (pseudo-inverse)."""
+        jacobian = self.jacobian(parameters)
+        return np.linalg.pinv(jacobian.T @ jacobian)
 
     def _motion(self, p):
         """(y0, theta0, omega, a, b, c) of each row of ``p``."""
@@ -117,13 +126,50 @@ class _VelocityWaveform(_Waveform):
         return viscous_motion(tau, p[0], p[1], p[2], beta, terms.get("c", 0.0))
 
 
+
+@dataclass(frozen=True, eq=False, repr=False)  # DecayFit's short repr
+class WaveformFit(DecayFit):
+    """A :class:`DecayFit` whose values come from the waveform fit by the equation of
+    motion: the averaged law's a, b, c (so Q(t) keeps its meaning), the form of the damping
+    forces fitted (``damping_form``: "amplitude", "velocity" or "cannot tell", and why) and
+    the forces' own coefficients (``physical``: name -> value, stderr, force, unit)."""
+
+    method: str = "waveform"
+    damping_form: str = "amplitude"
+    damping_form_reason: str | None = None
+    physical: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class WaveformStart:
+    """Where a waveform fit starts: each model's start values (y0, a, b, c), the
+    turning-point fit's AICc of each (fitted to full tolerance at once where close to the
+    best), the model whose values start those without their own, the frequency, and the
+    turning points (times, amplitudes, sigma) at which the result gives the law's amplitude."""
+
+    values: dict
+    scores: dict
+    model: str
+    omega: float
+    t: np.ndarray = field(repr=False)
+    y: np.ndarray = field(repr=False)
+    sigma: np.ndarray = field(repr=False)
+
+    @classmethod
+    def of_fit(cls, fit):
+        """The start a turning-point :class:`DecayFit` gives."""
+        return cls({c.model: c.values for c in fit.candidates},
+                   {c.model: c.aicc for c in fit.candidates}, fit.model, fit.omega,
+                   fit.t, fit.y, fit.sigma)
+
+
 # The physical forms of the damping terms: the waveform model of each and the candidate
 # models it offers (the velocity forms have no fluid term).
 FORMS = {"amplitude": (_Waveform, MODELS),
          "velocity": (_VelocityWaveform, tuple(m for m in MODELS if "a" not in m))}
 
 
-def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
+def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
                  forced=None, form="amplitude"):
     """Fit the samples between the first and the last used turning point by the equation
     of motion with the damping in ``form`` (a key of :data:`FORMS`).
@@ -134,34 +180,34 @@ def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
         The record (s, U).
     turning : mcfit.turning.TurningPoints
         Its turning points (for the window, the first crest's sign and the equilibrium).
-    start_fit : DecayFit
-        The turning-point fit, whose candidates start the waveform candidates.
+    start : WaveformStart
+        Where the candidates start (:meth:`WaveformStart.of_fit` of the turning-point fit).
     criterion, alpha, forced
         As for :func:`mcfit.fit.fit_decay`; a ``forced`` model the form does not offer
         raises :class:`mcfit.errors.FitError`.
 
     Returns
     -------
-    DecayFit
-        With ``method == "waveform"`` and ``damping_form == form``; values, errors and Q
-        from the waveform fit, ``physical`` the coefficients of the forces.
+    WaveformFit
+        With ``damping_form == form``; values, errors and Q from the waveform fit,
+        ``physical`` the coefficients of the forces.
     """
     kind, offered = FORMS[form]
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
-    tw, xw, t0, nuisance = _window(t, x, turning, start_fit)
+    tw, xw, t0, nuisance = _window(t, x, turning, start.omega)
     noise = sample_noise(xw)
-    starts = {c.model: c.values for c in start_fit.candidates}
+    starts = start.values
     models = (offered if forced is None
               else tuple(m for m in starts if m in offered))
     candidates, solutions = {}, {}
     waveforms = {model: kind(tw, xw, t0, terms_of(model), noise) for model in models}
-    likely = _likely(start_fit, models)
+    likely = _likely(start.scores, models)
     for model in models:
-        values = starts.get(model, starts.get(start_fit.model))
-        start = np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
+        values = starts.get(model, starts.get(start.model))
+        vector = np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
         candidates[model], solutions[model] = _ranked(
-            waveforms[model], start, _TOLERANCES if model in likely else _SCREENING)
+            waveforms[model], vector, _TOLERANCES if model in likely else _SCREENING)
     best = min(c.aicc for c in candidates.values())
     for model in models:
         if model not in likely and (candidates[model].aicc - best <= _CONTENTION
@@ -170,10 +216,10 @@ def fit_waveform(t, x, turning, start_fit, *, criterion="aicc", alpha=LRT_ALPHA,
                 waveforms[model], solutions[model].x, _TOLERANCES, solutions[model].nfev)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
     return _reported(selection, candidates, kind(tw, xw, t0, selection.terms, noise),
-                     start_fit, form)
+                     start, form)
 
 
-def _window(t, x, turning, start_fit):
+def _window(t, x, turning, omega):
     """The finite samples from the first to the last used turning point, the start time
     and the start of the nuisance parameters (phase, frequency, offset, drift)."""
     used = np.flatnonzero(turning.used)
@@ -181,7 +227,7 @@ def _window(t, x, turning, start_fit):
     window = (t >= t0) & (t <= t_end) & np.isfinite(x)
     theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
     e0 = turning.equilibrium_at(t0)
-    return t[window], x[window], t0, [theta0, start_fit.omega, e0, turning.equilibrium_drift]
+    return t[window], x[window], t0, [theta0, omega, e0, turning.equilibrium_drift]
 
 
 def sample_noise(x):
@@ -217,11 +263,10 @@ def _typical(start, terms):
     return typical
 
 
-def _likely(start_fit, models):
+def _likely(scores, models):
     """The models the turning-point fit puts in contention (its AICc within ``_LIKELY``
     of its best): fitted to full tolerance at once. Only the cost depends on this."""
-    scores = {c.model: c.aicc for c in start_fit.candidates
-              if c.model in models and math.isfinite(c.aicc)}
+    scores = {m: score for m, score in scores.items() if m in models and math.isfinite(score)}
     best = min(scores.values(), default=math.inf)
     return {m for m, score in scores.items() if score - best <= _LIKELY} | (
         set(models) - set(scores))
@@ -260,68 +305,46 @@ def _candidate(waveform, p, chi_square, success, evaluations, jacobian):
                      correlation, np.asarray(p), None)
 
 
-def _reported(selection, candidates, waveform, start_fit, form):
-    """The selected model refitted with lmfit; errors, Q and warnings as a DecayFit."""
-    from mcfit.fit.decay_fit import diagnose, tie_warning  # noqa: PLC0415 (import cycle)
-
-    terms, tw, t0, noise = selection.terms, waveform.t, waveform.t0, waveform.noise
-    start = candidates[selection.model].internal
-    waveform.typical = _typical(start, terms)
-    dof = tw.size - start.size
-    # lmfit reports the fit (it restarts at the ranking fit's solution and stops there).
-    params = lmfit.Parameters()
-    lower, upper = _bounds(start, terms)
-    for name, value, low, high in zip(waveform.names, start, lower, upper):
-        params.add(name, value=min(max(value, low), high), min=low, max=high)
-    result = lmfit_least_squares(lambda p: waveform.residual(_vector(p, waveform.names)),
-                                 lambda p: waveform.jacobian(_vector(p, waveform.names)),
-                                 params)
-    p, success = _vector(result.params, waveform.names), bool(result.success)
-    chi_square = float(result.chisqr)
-    covariance = getattr(result, "covar", None)
+def _reported(selection, candidates, waveform, start, form):
+    """The selected model refitted with lmfit; errors, Q and warnings."""
+    terms, t0, names = selection.terms, waveform.t0, waveform.free
+    begin = candidates[selection.model].internal
+    waveform.typical = _typical(begin, terms)
+    solution = solve_reported(waveform, lmfit_parameters(names, begin, *_bounds(begin, terms)))
+    p = solution.x
     residual = waveform.residual(p)
-    if covariance is None or not np.all(np.isfinite(covariance)):
-        jacobian = waveform.jacobian(p)
-        covariance = np.linalg.pinv(jacobian.T @ jacobian) * chi_square / max(dof, 1)
-    errors = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-    index = {name: i for i, name in enumerate(waveform.names)}
-    values = {"y0": float(p[0]), "a": 0.0, "b": 0.0, "c": 0.0}
-    values.update({k: float(p[index[k]]) for k in terms})
-    stderr = dict.fromkeys(("y0", "a", "b", "c"))
-    stderr.update({k: float(errors[index[k]]) for k in ("y0",) + tuple(terms)})
+    covariance = solution.covariance
+    if covariance is None:  # as many parameters as samples
+        covariance = np.full((p.size, p.size), np.nan)
     law_free = ("y0",) + tuple(terms)
-    law_index = [index[k] for k in law_free]
-    law_covariance = covariance[np.ix_(law_index, law_index)]
-    correlation = {f"{a},{b}": float(law_covariance[i, j] / (errors[index[a]] * errors[index[b]]))
-                   for i, a in enumerate(law_free) for j, b in enumerate(law_free)
-                   if i < j and errors[index[a]] > 0 and errors[index[b]] > 0}
-    omega, omega_sigma = float(p[2]), float(errors[2] / p[2])
-    fit = start_fit
-    t_points = fit.t
-    y_fit = decay.amplitude(t_points - t0, *(values[k] for k in ("y0", "a", "b", "c")))
-    q = q_stderr = q_parts = q_summary = q_bound = None
-    if selection.model == NONE:
-        q_bound = None
-    else:
-        q, q_stderr = uncertainty.q_with_stderr(t_points - t0, values, law_covariance, law_free,
-                                                omega, omega_sigma)
-        parts = decay.quality_parts(y_fit, omega, values["a"], values["b"], values["c"])
-        q_parts = {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}
-        q_summary = uncertainty.summarise_q(q, q_stderr)
-    errors_view = uncertainty.ParameterErrors(stderr, correlation, law_covariance)
-    warnings = (selection.warnings() + tie_warning(selection, y_fit)
-                + diagnose(terms, values, errors_view, residual, success))
-    return replace(
-        fit, status="ok" if success else "error",
-        message=None if success else "the waveform fit did not converge",
-        model=selection.model, t0=t0, omega=omega, values=values, stderr=stderr,
-        correlation=correlation, regimes={REGIME_NAMES[k]: k in terms for k in TERMS},
+    law_index = [names.index(k) for k in law_free]
+    errors = uncertainty.physical_errors(law_free, covariance[np.ix_(law_index, law_index)])
+    values = {"y0": float(p[0]), "a": 0.0, "b": 0.0, "c": 0.0}
+    values.update({k: float(p[names.index(k)]) for k in terms})
+    omega = float(p[2])
+    omega_sigma = float(math.sqrt(max(covariance[2, 2], 0.0)) / omega)
+    y_fit = decay.amplitude(start.t - t0, *(values[k] for k in ("y0", "a", "b", "c")))
+    q = q_stderr = q_parts = q_summary = None
+    if selection.model != NONE:
+        q, q_stderr, q_parts, q_summary = uncertainty.q_of_fit(
+            start.t - t0, y_fit, values, errors.covariance, law_free, omega, omega_sigma)
+    dof = waveform.t.size - p.size
+    return WaveformFit(
+        status="ok" if solution.success else "error",
+        message=None if solution.success else "the waveform fit did not converge",
+        model=selection.model, domain="time", criterion=selection.criterion, t0=t0,
+        omega=omega, values=values, stderr=errors.stderr, correlation=errors.correlation,
+        regimes={REGIME_NAMES[k]: k in terms for k in TERMS},
         lrt_p_values=selection.p_values, candidates=tuple(candidates.values()),
-        n_points=tw.size, rms=float(noise * np.sqrt(np.mean(residual**2))),
-        reduced_chi_square=chi_square / dof if dof > 0 else math.nan, selection=selection,
-        y_fit=y_fit, q=q, q_stderr=q_stderr, q_parts=q_parts, q_summary=q_summary,
-        q_lower_bound=q_bound, bootstrap=None, warnings=tuple(warnings), method="waveform",
-        damping_form=form, physical=physical_coefficients(form, terms, values, stderr, omega))
+        n_points=waveform.t.size,
+        rms=float(waveform.noise * np.sqrt(np.mean(residual**2))),
+        reduced_chi_square=solution.chi_square / dof if dof > 0 else math.nan,
+        noise_from_residuals=False, selection=selection, t=start.t, y=start.y, y_fit=y_fit,
+        sigma=start.sigma, q=q, q_stderr=q_stderr, q_parts=q_parts, q_summary=q_summary,
+        warnings=tuple(fit_warnings(selection, y_fit, values, errors, residual,
+                                    solution.success)),
+        damping_form=form,
+        physical=physical_coefficients(form, terms, values, errors.stderr, omega))
 
 
 # Each form's force per unit mass for each term: (name, force, coefficient from the
@@ -346,7 +369,3 @@ def physical_coefficients(form, terms, values, stderr, omega):
                        "stderr": None if error is None else coefficient(error, omega),
                        "force": force, "unit": unit}
     return found
-
-
-def _vector(params, names):
-    return np.array([params[name].value for name in names])
