@@ -80,7 +80,7 @@ def _z(fit, truth):
 def _one_record(q, seed, index):
     """Per method (turning points, waveform, auto): (z, covered, seconds); auto's method."""
     from mcfit.analysis import analyse_record, fit_turning_points
-    from mcfit.fit.waveform import fit_waveform
+    from mcfit.fit.waveform import WaveformStart, fit_waveform
     from mcfit.motion import simulate_record
     from mcfit.io import Record
     from mcfit.turning import find_turning_points
@@ -91,7 +91,7 @@ def _one_record(q, seed, index):
                            rng=np.random.default_rng([seed, int(10 * q), index]))
     turning_s, turning = _timed(find_turning_points, t, x)
     tp_s, tp = _timed(fit_turning_points, turning, model="b")
-    wf_s, wf = _timed(fit_waveform, t, x, turning, tp, forced="b")
+    wf_s, wf = _timed(fit_waveform, t, x, turning, WaveformStart.of_fit(tp), forced="b")
     auto_s, auto = _timed(analyse_record, Record(source=f"Q {q:g}", t=t, x=x))
     return ((*_z(tp, b), turning_s + tp_s), (*_z(wf, b), wf_s),
             auto.fit is not None and auto.fit.method == "waveform", auto_s)

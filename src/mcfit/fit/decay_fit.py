@@ -67,13 +67,8 @@ class DecayFit:
     q_lower_bound: float | None = None
     bootstrap: dict | None = None
     warnings: tuple = ()
-    method: str = "turning-points"  # or "waveform": what the values come from
+    method: str = "turning-points"  # what the values come from (WaveformFit: "waveform")
     method_reason: str | None = None
-    # The waveform fit's form of the damping forces ("amplitude": Eq. 20.55, "velocity":
-    # viscous and sliding friction, "cannot tell"), and the forces' coefficients.
-    damping_form: str | None = None
-    damping_form_reason: str | None = None
-    physical: dict | None = None
 
     @property
     def resolved(self) -> bool:
