@@ -10,7 +10,6 @@ a weighted mean.
 
 from __future__ import annotations
 
-import itertools
 import math
 import threading
 import warnings
@@ -23,6 +22,7 @@ from scipy import optimize
 from mcfit.fit.models import NONE, terms_of
 from mcfit.fit.problem import Problem, ScaledRecord
 from mcfit.fit.reported import TOLERANCES, solve_reported
+from mcfit.fit.uncertainty import term_correlations
 
 __all__ = ["Candidate", "ReportedFit", "fit_candidates", "fit_reported", "make_candidate",
            "information_criteria"]
@@ -125,18 +125,11 @@ def _constant_amplitude(scaled):
 
 def _correlations(scaled, terms, values, problem=None):
     """Correlations of the estimates of two or more terms at ``values`` (internal units),
-    from the pseudo-inverse of J'J; 0 where a variance is 0."""
+    from the pseudo-inverse of J'J."""
     if len(terms) < 2:
         return {}
     problem = problem or Problem(scaled, terms)
-    covariance = problem.covariance(values[problem.columns])
-    pairs = {}
-    for first, second in itertools.combinations(terms, 2):
-        i, j = problem.free.index(first), problem.free.index(second)
-        product = (covariance[i, i] * covariance[j, j]) if covariance is not None else 0.0
-        pairs[f"{first},{second}"] = (float(covariance[i, j] / math.sqrt(product))
-                                      if product > 0 else 0.0)
-    return pairs
+    return term_correlations(problem.free, problem.covariance(values[problem.columns]), terms)
 
 
 def _rank(scaled, terms, smaller):

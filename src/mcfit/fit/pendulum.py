@@ -46,7 +46,7 @@ from mcfit.fit.models import CRITERIA, NONE, POWER, REGIME_NAMES, TERMS, models_
 from mcfit.fit.problem import PARAMETERS
 from mcfit.fit.reported import TOLERANCES, lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
-from mcfit.fit.uncertainty import physical_errors, summarise_q
+from mcfit.fit.uncertainty import physical_errors, summarise_q, term_correlations
 
 __all__ = ["PendulumFit", "fit_pendulum", "geometric_factors", "period_ratio",
            "fundamental_amplitude",
@@ -349,13 +349,8 @@ def _candidate(model, values, chi_square, success, evaluations, n_points, span, 
     aicc, bic = information_criteria(chi_square, n_points, n_params)
     correlation = {}
     if problem is not None and len(problem.free) > 2:
-        covariance = problem.covariance(values[problem.columns])
-        errors = np.sqrt(np.maximum(np.diag(covariance), 0.0))
-        for i, first in enumerate(problem.free[1:], start=1):
-            for j, second in enumerate(problem.free[i + 1:], start=i + 1):
-                product = errors[i] * errors[j]
-                correlation[f"{first},{second}"] = (float(covariance[i, j] / product)
-                                                    if product > 0 else 0.0)
+        correlation = term_correlations(problem.free, problem.covariance(values[problem.columns]),
+                                        problem.free[1:])
     return Candidate(model, n_params, chi_square, aicc, bic, success,
                      _physical(values, span, scale), evaluations, correlation, values)
 
@@ -450,8 +445,7 @@ def _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selecti
     reduced = chi_square / dof if dof > 0 else math.nan
     factors = _physical_factors(span, scale)[[_COLUMN[k] for k in free]]
     errors = physical_errors(free, covariance, factors)
-    stderr, correlation, physical_covariance = (errors.stderr, errors.correlation,
-                                                errors.covariance)
+    stderr, correlation = errors.stderr, errors.correlation
     values = _physical(internal, span, scale)
     theta_fit, sensitivity = _amplitude_solution(tau, *internal)
     y_fit = theta_fit / scale

@@ -13,7 +13,8 @@ from scipy import special
 from mcfit import decay
 from mcfit.fit.problem import PARAMETERS, Problem
 
-__all__ = ["ParameterErrors", "parameter_errors", "physical_errors", "q_of_fit", "q_with_stderr", "summarise_q",
+__all__ = ["ParameterErrors", "parameter_errors", "physical_errors", "q_of_fit",
+           "term_correlations", "q_with_stderr", "summarise_q",
            "q_lower_bound", "bootstrap_intervals", "interval_factor"]
 
 _COLUMN = {name: i for i, name in enumerate(PARAMETERS)}
@@ -49,6 +50,18 @@ def physical_errors(free, covariance, factors=1.0) -> ParameterErrors:
                    for (i, ki), (j, kj) in itertools.combinations(enumerate(free), 2)
                    if errors[i] > 0 and errors[j] > 0}
     return ParameterErrors(stderr, correlation, physical)
+
+
+def term_correlations(free, covariance, terms) -> dict:
+    """Correlations {"a,b": rho} of the estimates of each pair of ``terms`` (names in
+    ``free``, the order of ``covariance``'s rows); 0 where a variance is 0."""
+    pairs = {}
+    for first, second in itertools.combinations(terms, 2):
+        i, j = free.index(first), free.index(second)
+        product = covariance[i, i] * covariance[j, j] if covariance is not None else 0.0
+        pairs[f"{first},{second}"] = (float(covariance[i, j] / math.sqrt(product))
+                                      if product > 0 else 0.0)
+    return pairs
 
 
 def interval_factor(dof, confidence=0.95):

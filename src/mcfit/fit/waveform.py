@@ -293,13 +293,8 @@ def _candidate(waveform, p, chi_square, success, evaluations, jacobian):
     aicc, bic = information_criteria(chi_square, waveform.t.size, n_params)
     values = {"y0": float(p[0]), "a": 0.0, "b": 0.0, "c": 0.0}
     values.update({k: float(p[5 + i]) for i, k in enumerate(waveform.terms)})
-    covariance = np.linalg.pinv(jacobian.T @ jacobian)
-    correlation = {}
-    for i, first in enumerate(waveform.terms):
-        for j, second in enumerate(waveform.terms[i + 1:], start=i + 1):
-            product = covariance[5 + i, 5 + i] * covariance[5 + j, 5 + j]
-            correlation[f"{first},{second}"] = (float(covariance[5 + i, 5 + j]
-                                                      / math.sqrt(product)) if product > 0 else 0.0)
+    correlation = uncertainty.term_correlations(
+        waveform.free, np.linalg.pinv(jacobian.T @ jacobian), waveform.terms)
     model = "".join(waveform.terms) or NONE
     return Candidate(model, n_params, chi_square, aicc, bic, success, values, evaluations,
                      correlation, np.asarray(p), None)
