@@ -11,11 +11,10 @@ import math
 from dataclasses import replace
 
 import numpy as np
-from scipy import optimize
 
 from mcfit.errors import RecordError
 from mcfit.fit.models import MODELS
-from mcfit.fit.waveform import WaveformStart, sample_noise
+from mcfit.fit.waveform import FORMS, WaveformStart, fit_candidate, sample_noise
 from mcfit.turning.result import TurningPoints, _frozen
 from mcfit.viscous_motion import viscous_motion
 
@@ -39,7 +38,7 @@ def few_swings_start(t, x, source="record"):
     start, first = _damped_cosine_start(t, x, noise, source)
     t0 = t[first]
     after = t >= t0
-    p = _fitted_damped_cosine(t[after] - t0, x[after], start, noise, source)
+    p = _fitted_damped_cosine(t[after], x[after], t0, start, noise, source)
     y0, theta0, omega, e0, e1, beta = p
     damped = math.sqrt(max(omega**2 - beta**2, 1e-12 * omega**2))
     half = math.pi / damped
@@ -79,17 +78,12 @@ def _damped_cosine_start(t, x, noise, source):
     return np.array([abs(u[first]), theta0, omega, e0, 0.0, beta]), first
 
 
-def _fitted_damped_cosine(tau, x, start, noise, source):
-    """The damped cosine (y0, theta0, omega, e0, e1, beta) least-squares fitted."""
-    def residual(p):
-        return (viscous_motion(tau, p[0], p[1], p[2], min(p[5], 0.99 * p[2])) + p[3]
-                + p[4] * tau - x) / noise
-
-    lower = [0.0, start[1] - math.pi / 2, 0.5 * start[2], -np.inf, -np.inf, 0.0]
-    upper = [np.inf, start[1] + math.pi / 2, 2.0 * start[2], np.inf, np.inf, start[2]]
-    result = optimize.least_squares(residual, np.clip(start, lower, upper),
-                                    bounds=(lower, upper), x_scale="jac")
-    if not result.success:
+def _fitted_damped_cosine(t, x, t0, start, noise, source):
+    """The damped cosine (y0, theta0, omega, e0, e1, beta) least-squares fitted: the
+    velocity form's viscous model of :mod:`mcfit.fit.waveform`."""
+    kind, _ = FORMS["velocity"]
+    candidate, result = fit_candidate(kind(t, x, t0, "b", noise), start)
+    if not candidate.success:
         raise RecordError(f"no damped oscillation could be fitted to {source}. Check the "
                           "signal column.")
     return result.x

@@ -37,7 +37,7 @@ from mcfit.fit.selection import LRT_ALPHA, select_model
 from mcfit.phase_plane import phase_plane_differences
 from mcfit.viscous_motion import coulomb_force, viscous_motion
 
-__all__ = ["FORMS", "WaveformFit", "WaveformStart", "fit_waveform"]
+__all__ = ["FORMS", "WaveformFit", "WaveformStart", "fit_waveform", "fit_candidate"]
 # Nuisance parameters of the waveform besides y0: phase, frequency, offset, drift.
 _NUISANCE = ("theta0", "omega", "e0", "e1")
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
@@ -270,6 +270,12 @@ def _likely(scores, models):
     best = min(scores.values(), default=math.inf)
     return {m for m, score in scores.items() if score - best <= _LIKELY} | (
         set(models) - set(scores))
+
+
+def fit_candidate(waveform, start):
+    """One model's waveform fitted from ``start`` to full tolerance: (its
+    :class:`mcfit.fit.candidates.Candidate`, scipy's result)."""
+    return _ranked(waveform, start, _TOLERANCES)
 
 
 def _ranked(waveform, start, tolerances, evaluations=0):
