@@ -177,6 +177,16 @@ def test_waveform_candidates_and_verdict():
     assert 0.7 < fit.reduced_chi_square < 1.4
 
 
+def test_bootstrap_asked_for_is_not_dropped_silently_when_the_waveform_is_reported():
+    t, x, _ = _low_q_record(3, 0.0, 8, 1)
+    record = Record(source="q3", t=t, x=x)
+    fit = analyse_record(record, bootstrap=20, rng=np.random.default_rng(0)).fit
+    assert fit.method == "waveform" and fit.bootstrap is None
+    assert any("20 bootstrap refits asked for are of the turning-point fit" in w
+               for w in fit.warnings)
+    assert not any("bootstrap" in w for w in analyse_record(record).fit.warnings)
+
+
 def test_screening_far_candidates_changes_no_result(monkeypatch):
     """Candidates far from contention are fitted to a looser tolerance: the reported fit
     is that of fitting every candidate to full tolerance, their AICc within 1e-4."""

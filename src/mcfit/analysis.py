@@ -252,8 +252,14 @@ def _waveform_fit(record, turning, fit, criterion, model):
     from mcfit.fit.waveform import WaveformStart
 
     x = _without_steady_line(record.t, record.x, turning.steady_line)
-    return fit_both_forms(record.t, x, turning, WaveformStart.of_fit(fit),
-                          criterion=criterion, forced=model)
+    waveform = fit_both_forms(record.t, x, turning, WaveformStart.of_fit(fit),
+                              criterion=criterion, forced=model)
+    if fit.bootstrap is None:
+        return waveform
+    return replace(waveform, warnings=waveform.warnings + (
+        f"the {fit.bootstrap['n'] + fit.bootstrap['failed']} bootstrap refits asked for are "
+        "of the turning-point fit, "
+        "which is not reported: the waveform fit's intervals are from its covariance",))
 
 
 # Selected models of the two forms whose AICc differ by no more than this cannot be told
