@@ -24,7 +24,8 @@ from mcfit.fit.problem import Problem, ScaledRecord
 from mcfit.fit.reported import TOLERANCES, solve_reported
 from mcfit.fit.uncertainty import term_correlations
 
-__all__ = ["Candidate", "ReportedFit", "fit_candidates", "fit_reported", "make_candidate",
+__all__ = ["Candidate", "ReportedFit", "fit_candidates", "nested_candidates", "fit_reported",
+           "make_candidate",
            "information_criteria"]
 
 # Ranking needs chi-square to far below 1 (AICc differences, likelihood ratios): 1e-8 of it
@@ -90,18 +91,26 @@ def information_criteria(chi_square, n_points, n_params):
     return aicc, bic
 
 
-def fit_candidates(scaled: ScaledRecord, models) -> dict:
-    """Fit ``models`` (names from :data:`mcfit.fit.models.MODELS`, smaller ones first:
-    each is started from those one term smaller) and return ``{model: Candidate}``."""
+def nested_candidates(models, constant, fit_one) -> dict:
+    """``{model: Candidate}`` for ``models`` (names from :data:`mcfit.fit.models.MODELS`,
+    smaller ones first): ``constant()`` for the empty model, ``fit_one(model, smaller)``
+    for the others, ``smaller`` the candidates fitted one term smaller (to start from, so a
+    larger model never fits worse than a nested smaller one). Every law ranks so."""
     fitted = {}
     for model in models:
         if model == NONE:
-            fitted[model] = _constant_amplitude(scaled)
+            fitted[model] = constant()
             continue
         smaller = [fitted[m] for m in fitted if len(fitted[m].terms) == len(model) - 1
                    and set(fitted[m].terms) <= set(model)]
-        fitted[model] = _rank(scaled, model, smaller)
+        fitted[model] = fit_one(model, smaller)
     return fitted
+
+
+def fit_candidates(scaled: ScaledRecord, models) -> dict:
+    """The averaged law's candidates (:func:`nested_candidates`, each by :func:`_rank`)."""
+    return nested_candidates(models, lambda: _constant_amplitude(scaled),
+                             lambda model, smaller: _rank(scaled, model, smaller))
 
 
 def make_candidate(scaled, model, values, chi_square, success, evaluations, gradient=None,

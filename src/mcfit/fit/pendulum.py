@@ -38,7 +38,7 @@ import numpy as np
 from scipy import integrate, optimize, special
 
 from mcfit.errors import FitError
-from mcfit.fit.candidates import Candidate, information_criteria
+from mcfit.fit.candidates import Candidate, information_criteria, nested_candidates
 from mcfit.fit.decay_fit import MIN_POINTS, DecayFit
 from mcfit.fit.diagnostics import fit_warnings, misfit_warning, no_decay_warning
 from mcfit.fit.models import CRITERIA, NONE, POWER, REGIME_NAMES, TERMS, models_to_fit, \
@@ -358,31 +358,29 @@ def _candidate(model, values, chi_square, success, evaluations, n_points, span, 
 def _fit_candidates(tau, theta, weights, models, span, scale):
     """Every model fitted with scipy's bounded trust-region-reflective solver, started from
     the best of: a linear estimate of the small-angle law and the best fit one term smaller
-    (so a larger model never fits worse than a nested smaller one)."""
-    fitted = {}
-    w2 = weights**2
-    for model in models:
-        if model == NONE:
-            y0 = max(float(np.sum(w2 * theta) / np.sum(w2)), 0.0)
-            chi_square = float(np.sum(w2 * (theta - y0) ** 2))
-            fitted[model] = _candidate(NONE, np.array([y0, 0.0, 0.0, 0.0]), chi_square, True,
-                                       1, tau.size, span, scale)
-            continue
+    (:func:`mcfit.fit.candidates.nested_candidates`)."""
+    def constant():
+        w2 = weights**2
+        y0 = max(float(np.sum(w2 * theta) / np.sum(w2)), 0.0)
+        chi_square = float(np.sum(w2 * (theta - y0) ** 2))
+        return _candidate(NONE, np.array([y0, 0.0, 0.0, 0.0]), chi_square, True, 1, tau.size,
+                          span, scale)
+
+    def fit_one(model, smaller):
         problem = _Problem(tau, theta, weights, model)
         starts = [_linear_start(tau, theta, weights, model)]
-        smaller = [fitted[m] for m in fitted if len(terms_of(m)) == len(model) - 1
-                   and set(terms_of(m)) <= set(model)]
         if smaller:
             best = min(smaller, key=lambda c: c.chi_square).internal.copy()
             rate = max(float(np.sum(best[1:])), 1e-3)
             for k in model:  # off the bound, where the Jacobian of a term may vanish
                 best[_COLUMN[k]] = max(best[_COLUMN[k]], 1e-3 * rate)
             starts.append(best)
-        results = [_bounded(problem, start) for start in starts]
-        values, chi_square, success = min(results, key=lambda r: r[1])
-        fitted[model] = _candidate(model, values, chi_square, success, problem.evaluations,
-                                   tau.size, span, scale, problem)
-    return fitted
+        values, chi_square, success = min((_bounded(problem, start) for start in starts),
+                                          key=lambda r: r[1])
+        return _candidate(model, values, chi_square, success, problem.evaluations, tau.size,
+                          span, scale, problem)
+
+    return nested_candidates(models, constant, fit_one)
 
 
 def _upper_bounds(problem):
