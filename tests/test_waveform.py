@@ -187,6 +187,28 @@ def test_bootstrap_asked_for_is_not_dropped_silently_when_the_waveform_is_report
     assert not any("bootstrap" in w for w in analyse_record(record).fit.warnings)
 
 
+@pytest.mark.parametrize("q, share, model", [(3, 0.0, "b"), (5, 0.1, "bc")])
+def test_candidates_far_from_contention_are_estimated_not_fitted(monkeypatch, q, share, model):
+    """Smaller models the largest's fit puts far from contention (Wald) are not fitted:
+    the result is that of fitting every candidate, and the estimated ones are far indeed."""
+    t, x, _ = _low_q_record(q, share, 8, 3)
+    turning = find_turning_points(t, x)
+    start = WaveformStart.of_fit(fit_turning_points(turning))
+    quick = fit_waveform(t, x, turning, start)
+    monkeypatch.setattr(waveform, "_far_candidates", lambda *args: {})
+    full = fit_waveform(t, x, turning, start)
+    assert quick.model == full.model == model
+    for k in ("y0",) + tuple(model):
+        assert abs(quick.values[k] - full.values[k]) < 1e-3 * full.stderr[k]
+    estimated = [c for c in quick.candidates if c.estimated]
+    assert estimated and not any(c.estimated for c in full.candidates)
+    best = min(c.aicc for c in full.candidates)
+    fitted = {c.model: c for c in full.candidates}
+    for c in estimated:
+        assert fitted[c.model].aicc - best > waveform._CONTENTION
+        assert c.aicc == pytest.approx(fitted[c.model].aicc, rel=0.5)
+
+
 def test_screening_far_candidates_changes_no_result(monkeypatch):
     """Candidates far from contention are fitted to a looser tolerance: the reported fit
     is that of fitting every candidate to full tolerance, their AICc within 1e-4."""

@@ -139,7 +139,8 @@ def to_json_dict(analysis: Analysis) -> dict:
                                    for k, p in selection.near_threshold.items()}})
         out["candidates"] = [{"model": c.model, "n_params": c.n_params,
                               "chi_square": _number(c.chi_square), "aicc": _number(c.aicc),
-                              "bic": _number(c.bic), "converged": c.success}
+                              "bic": _number(c.bic), "converged": c.success,
+                              **({"estimated": True} if c.estimated else {})}
                              for c in fit.candidates]
         if power:
             out["power_law"] = {**{k: _number(v) for k, v in fit.values.items()},
@@ -446,8 +447,11 @@ def to_text(analysis: Analysis) -> str:
     ranked = sorted(fit.candidates, key=lambda c: getattr(c, fit.criterion))
     if len(ranked) > 1:
         best = getattr(ranked[0], fit.criterion)
-        scores = ", ".join(f"{c.model} {getattr(c, fit.criterion) - best:+.1f}" for c in ranked)
-        lines.append(f"  candidates:      delta {fit.criterion.upper()}: {scores}")
+        scores = ", ".join(f"{c.model} {'~' if c.estimated else ''}"
+                           f"{getattr(c, fit.criterion) - best:+.1f}" for c in ranked)
+        lines.append(f"  candidates:      delta {fit.criterion.upper()}: {scores}"
+                     + (" (~ estimated, far from contention)"
+                        if any(c.estimated for c in ranked) else ""))
     lines += _bootstrap_lines(fit)
     for note in data.get("notes", []):
         lines.append(f"  note: {note}")

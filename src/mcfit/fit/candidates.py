@@ -57,6 +57,8 @@ class Candidate:
     internal: np.ndarray = field(default=None, repr=False, compare=False)
     # The chi-square gradient at ``internal`` where the ranking computed it (see _gradient).
     gradient: np.ndarray = field(default=None, repr=False, compare=False)
+    # Far from contention, its chi-square estimated from a larger model's fit, not fitted.
+    estimated: bool = False
 
     @property
     def terms(self) -> str:

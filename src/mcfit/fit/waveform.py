@@ -200,23 +200,74 @@ def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
     starts = start.values
     models = (offered if forced is None
               else tuple(m for m in starts if m in offered))
-    candidates, solutions = {}, {}
     waveforms = {model: kind(tw, xw, t0, terms_of(model), noise) for model in models}
-    likely = _likely(start.scores, models)
+    vectors = {model: _start_vector(starts.get(model, starts.get(start.model)), nuisance,
+                                    model) for model in models}
+    candidates, solutions = _fitted_candidates(waveforms, vectors, models,
+                                               _likely(start.scores, models), forced)
+    selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
+    return _reported(selection, candidates, kind(tw, xw, t0, selection.terms, noise),
+                     start, form)
+
+
+def _start_vector(values, nuisance, model):
+    return np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
+
+
+def _fitted_candidates(waveforms, vectors, models, likely, forced):
+    """({model: Candidate}, {model: scipy's result}) for ``models``.
+
+    The largest model is fitted first; a smaller one whose chi-square it puts far from
+    contention (:func:`_far_candidates`) is not fitted. The ``likely`` ones are fitted to
+    full tolerance at once, the others screened first and refitted where in contention."""
+    largest = max(models, key=lambda m: len(terms_of(m)))
+    candidates, solutions = {}, {}
+    candidates[largest], solutions[largest] = _ranked(waveforms[largest], vectors[largest],
+                                                      _TOLERANCES)
+    far = _far_candidates(candidates[largest], solutions[largest], vectors,
+                          set(models) - {largest, forced})
     for model in models:
-        values = starts.get(model, starts.get(start.model))
-        vector = np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
-        candidates[model], solutions[model] = _ranked(
-            waveforms[model], vector, _TOLERANCES if model in likely else _SCREENING)
+        if model in far:
+            candidates[model] = far[model]
+        elif model != largest:
+            candidates[model], solutions[model] = _ranked(
+                waveforms[model], vectors[model], _TOLERANCES if model in likely else _SCREENING)
     best = min(c.aicc for c in candidates.values())
-    for model in models:
+    for model in solutions:
         if model not in likely and (candidates[model].aicc - best <= _CONTENTION
                                     or model == forced):
             candidates[model], solutions[model] = _ranked(
                 waveforms[model], solutions[model].x, _TOLERANCES, solutions[model].nfev)
-    selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
-    return _reported(selection, candidates, kind(tw, xw, t0, selection.terms, noise),
-                     start, form)
+    return {m: candidates[m] for m in models}, solutions
+
+
+def _far_candidates(largest, solution, vectors, models):
+    """The ``models`` nested in the fitted ``largest`` whose AICc is beyond
+    ``_CONTENTION`` above its own by the Wald statistic of the terms they drop (the
+    chi-square rise of a quadratic approximation, with the covariance scaled by the
+    reduced chi-square where above 1): their chi-square is estimated so, not fitted.
+    The approximation is off by far less than the margin between ``_CONTENTION`` and
+    the selection's thresholds (about 10)."""
+    if not solution.success:
+        return {}
+    terms, n = largest.terms, solution.fun.size
+    jacobian = solution.jac
+    reduced = max(largest.chi_square / max(n - largest.n_params, 1), 1.0)
+    covariance = np.linalg.pinv(jacobian.T @ jacobian) * reduced
+    far = {}
+    for model in models:
+        dropped = [5 + terms.index(k) for k in terms if k not in terms_of(model)]
+        theta = solution.x[dropped]
+        rise = float(theta @ np.linalg.pinv(covariance[np.ix_(dropped, dropped)]) @ theta)
+        n_params = largest.n_params - len(dropped)
+        chi_square = largest.chi_square + rise
+        aicc, bic = information_criteria(chi_square, n, n_params)
+        if aicc - largest.aicc > _CONTENTION:
+            values = {"y0": float(vectors[model][0]), "a": 0.0, "b": 0.0, "c": 0.0}
+            values.update({k: float(v) for k, v in zip(terms_of(model), vectors[model][5:])})
+            far[model] = Candidate(model, n_params, chi_square, aicc, bic, True, values, 0,
+                                   internal=vectors[model], estimated=True)
+    return far
 
 
 def _window(t, x, turning, omega):
