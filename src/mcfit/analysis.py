@@ -9,7 +9,7 @@ import numpy as np
 
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
-from mcfit.fit.decay_fit import fit_model_values, misfit_warning
+from mcfit.fit.decay_fit import misfit_warning
 from mcfit.fit.models import TERMS, terms_of
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
@@ -244,14 +244,6 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
                     period_sigma=period_sigma, domain=turning.domain, **options)
     return with_large_swing_warning(fit, turning, degrees)
-
-
-def fitted_values(turning: TurningPoints, model) -> dict:
-    """The values of ``model`` fitted to the used turning points, and nothing else
-    (:func:`mcfit.fit.decay_fit.fit_model_values`)."""
-    used = turning.used
-    return fit_model_values(turning.t[used], turning.y[used], _sigma_of_used(turning),
-                            model=model)
 
 
 def _sigma_of_used(turning):
