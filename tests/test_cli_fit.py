@@ -324,17 +324,21 @@ def test_a_record_with_the_time_column_last_is_fitted(runner, tmp_path, rng):
 
 
 @pytest.mark.parametrize("output_format", ["text", "json", "csv"])
-def test_each_job_formats_only_the_chosen_output(tmp_path, rng, output_format):
-    from mcfit import batch
+def test_each_job_returns_data_that_the_command_line_formats(runner, tmp_path, rng,
+                                                             output_format):
+    from mcfit import batch, report
+    from mcfit.options import for_command_line
 
     record = str(_write_record(tmp_path / "run.csv", rng))
     options = batch.FitOptions(output_format=output_format)
     [file_result] = batch.run_jobs([record], options, [None])
     [result] = file_result.records
-    assert result.status == "ok" and file_result.summary == ""
-    if output_format == "json":
-        assert json.loads(result.output)["source"] == record
-    elif output_format == "csv":
-        assert next(csv.reader(io.StringIO(result.output)))[:3] == [record, "ok", "abc"]
-    else:
-        assert result.output.startswith(f"mcfit report: {record}\n")
+    data = result["analysis"]
+    assert data["status"] == "ok" and data["source"] == record and data["model"] == "abc"
+    printed = runner.invoke(cli, [record, "--format", output_format]).stdout
+    expected = {"json": report.to_json(data) + "\n",
+                "csv": report.csv_header() + report.to_csv_row(data),
+                "text": report.to_text(data)}[output_format]
+    assert printed == for_command_line(expected)
+    assert printed.startswith({"json": '{"source": ', "csv": "source,status,model,",
+                               "text": f"mcfit report: {record}\n"}[output_format])

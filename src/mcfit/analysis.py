@@ -9,9 +9,8 @@ import numpy as np
 
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
-from mcfit.fit.decay_fit import fit_model_values
 from mcfit.fit.diagnostics import misfit_warning
-from mcfit.fit.models import terms_of
+from mcfit.fit.models import TERMS, terms_of
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
 from mcfit.fit.selection import LRT_ALPHA
@@ -39,25 +38,79 @@ class Analysis:
             found += list(self.fit.warnings)
         return tuple(found)
 
-    def summary(self) -> dict:
-        """The results as plain Python objects: exactly one JSON line of the command line."""
-        from mcfit.report import to_json_dict
+    def to_dict(self, *, detail=False) -> dict:
+        """The results as plain data (JSON-ready): exactly one JSON line of the command
+        line, composed of the record's, the turning points' and the fit's ``to_dict``.
+        Keys may be added, never renamed. With ``detail`` also ``detail``: the fit's
+        ``domain``, ``n_points`` and ``correlation``, which the text report shows."""
+        record = self.record.to_dict() if self.record is not None else None
+        turning = self.turning.to_dict() if self.turning is not None else None
+        out = {"source": self.source, "status": self.status, "error": self.error,
+               "run": record["run"] if record else None,  # "Run 7" of a file of several
+               "domain": record["domain"] if record else None,
+               "turning_points": turning["count"] if turning else 0,
+               "period": turning["period"] if turning else None}
+        if self.fit is None:
+            out.update({"model": None, "regimes": None, "params": None, "q": None,
+                        "fit": None, "candidates": [], "warnings": []})
+        else:
+            out.update(self._fit_dict(record, turning, detail))
+        if record is not None:
+            out["columns"] = {"time": record["time_column"], "signal": record["signal_column"]}
+            out["input"] = record["kind"]
+        if turning is not None:
+            out["turning_points_excluded"] = turning["excluded"]
+            out["period_drift"] = turning["period_drift"]
+            # Where the free decay starts, when the record begins held, driven or settling.
+            out["release_time"] = turning["release_time"]
+            out["notes"] = (record["notes"] if record else []) + turning["notes"]
+        elif record is not None:
+            out["notes"] = record["notes"]
+        if detail and "detail" in out:  # last, after the record's and turning points' keys
+            out["detail"] = out.pop("detail")
+        return out
 
-        return to_json_dict(self)
+    def summary(self) -> dict:
+        """The results as plain Python objects: exactly one JSON line of the command line
+        (:meth:`to_dict`)."""
+        return self.to_dict()
 
     def report(self) -> str:
         """The text report, as ``mcfit FILE`` prints it."""
         from mcfit.report import to_text
 
-        return to_text(self)
+        return to_text(self.to_dict(detail=True))
+
+    def turning_point_table(self) -> list[dict]:
+        """One row per turning point of the record, used or left out (with the reason),
+        as plain data: source, t, amplitude, sigma, used, excluded_reason and the fitted
+        envelope at the used ones, as the command line writes them."""
+        from mcfit.plain import number
+
+        if self.turning is None:
+            return []
+        rows = [{"source": self.source, **point, "envelope": None}
+                for point in self.turning.to_dict(points=True)["points"]]
+        used = [row for row in rows if row["used"]]
+        # The fit's own amplitudes where it converted them (a pendulum's peak angles).
+        for key, name in (("amplitude", "y"), ("sigma", "sigma"), ("envelope", "y_fit")):
+            values = None if self.fit is None else getattr(self.fit, name)
+            if values is not None and len(values) == len(used):
+                for row, value in zip(used, values):
+                    row[key] = number(value)
+        return rows
 
     @property
     def turning_points(self):
         """The turning points as a pandas DataFrame: t, amplitude, sigma, used, why not
         (``excluded_reason``) and the fitted envelope, as the command line writes them."""
-        from mcfit.api import turning_points_frame
+        import pandas as pd
 
-        return turning_points_frame(self)
+        from mcfit.report import TURNING_POINT_COLUMNS
+
+        table = pd.DataFrame(self.turning_point_table(), columns=TURNING_POINT_COLUMNS)
+        return table.drop(columns="source").astype({"amplitude": float, "sigma": float,
+                                                    "envelope": float})
 
     def figure(self, title=None, *, panels=None, figsize=None, unit=None):
         """The report figure (a matplotlib Figure; nothing is shown or saved).
@@ -115,6 +168,51 @@ class Analysis:
         self.figure().savefig(buffer, format="png", dpi=DPI)
         return {"image/png": buffer.getvalue()}
 
+    def _fit_dict(self, record, turning, detail):
+        """The fit's part of :meth:`to_dict`, with the units from the record (time) or
+        from a pendulum fit (angle), and the coefficients per cycle."""
+        from mcfit.record import coefficient_units
+
+        fit = self.fit.to_dict()
+        found = {k: fit.pop(k) for k in _FIT_DETAIL if k in fit}
+        time_unit = (record["time_unit"] if record else None) or "s"
+        if found["domain"] == "cycle":
+            per, unit = "cycle", "per cycle"
+        else:  # an unknown unit as it is named
+            per, unit = time_unit, "per second" if time_unit == "s" else f"per {time_unit}"
+        signal_unit = ((record["signal_unit"] if record else None)
+                       or (fit.get("pendulum") or {}).get("angle_unit"))
+        out = {}
+        for key, value in fit.items():
+            out[key] = value
+            if key == "params":
+                out["params_units"] = unit
+                out["signal_unit"] = signal_unit or None
+                out["coefficient_units"] = coefficient_units(signal_unit, per)
+                out["params_per_cycle"] = _per_cycle(value, found["domain"], turning)
+        out["warnings"] = list(self.warnings)
+        if detail:
+            out["detail"] = found
+        return out
+
+
+# What a fit's to_dict holds beyond the JSON line (the text report shows it).
+_FIT_DETAIL = ("domain", "n_points", "correlation")
+
+
+def _per_cycle(params, domain, turning):
+    """The coefficients per cycle (a*T, b*T, c*T, as in Fig. 20.20) from a fit's plain
+    ``params`` and the turning points' period, or None without a period."""
+    from mcfit.plain import number
+
+    if domain == "cycle":
+        return {k: dict(params[k]) for k in TERMS}
+    period = turning["period"] if turning else None
+    if period is None:
+        return None
+    return {k: {part: None if params[k][part] is None else number(params[k][part] * period)
+                for part in ("value", "stderr")} for k in TERMS}
+
 
 def failed_analysis(source: str, message: str, record=None, turning=None) -> Analysis:
     """An analysis that ended in an expected failure, carrying the one-line message."""
@@ -141,14 +239,6 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
                     period_sigma=period_sigma, domain=turning.domain, **options)
     return with_large_swing_warning(fit, turning, degrees)
-
-
-def fitted_values(turning: TurningPoints, model) -> dict:
-    """The values of ``model`` fitted to the used turning points, and nothing else
-    (:func:`mcfit.fit.decay_fit.fit_model_values`)."""
-    used = turning.used
-    return fit_model_values(turning.t[used], turning.y[used], _sigma_of_used(turning),
-                            model=model)
 
 
 def _sigma_of_used(turning):

@@ -104,11 +104,6 @@ def analyse_files(paths, *, jobs=1, **options):
     """Every record of ``paths`` (files or directories; every run of a multi-run file) as
     a pandas DataFrame with the command line's CSV columns, one row per record, in input
     order; ``jobs`` worker processes."""
-    import csv
-    import io
-
-    import pandas as pd
-
     from mcfit import batch, report
 
     chosen = _taken(options, READ_OPTIONS + FIT_OPTIONS)
@@ -120,24 +115,44 @@ def analyse_files(paths, *, jobs=1, **options):
                                                    else paths)])
     fit_options = batch.FitOptions(output_format="csv", **chosen)
     bootstrap = fit_options.bootstrap > 0
-    rows = [result.output for file_result in batch.run_jobs(
-        sources, fit_options, [None] * len(sources), jobs=jobs)
-        for result in file_result.records]
-    text = report.csv_header(bootstrap) + "".join(rows)
-    return pd.read_csv(io.StringIO(text), quoting=csv.QUOTE_MINIMAL, keep_default_na=False,
-                       na_values=[""])
+    rows = [report.csv_record(result["analysis"], bootstrap)
+            for file_result in batch.run_jobs(sources, fit_options, [None] * len(sources),
+                                              jobs=jobs)
+            for result in file_result.records]
+    return _frame(rows, report.csv_columns(bootstrap))
+
+
+def _frame(rows, columns):
+    """A DataFrame of ``rows`` (dicts of plain values, None for missing) with the types a
+    CSV reader gives them: numbers as float or int, NaN for missing."""
+    import pandas as pd
+
+    frame = pd.DataFrame.from_records(rows, columns=list(columns))
+    return frame.apply(_typed_column)
+
+
+def _typed_column(column):
+    import pandas as pd
+
+    values = column.dropna()
+    if values.empty:
+        return column.astype(float)
+    if all(isinstance(v, bool) for v in values):
+        return column.astype(bool) if len(values) == len(column) else _nan_for_none(column)
+    if all(isinstance(v, (int, float)) for v in values):
+        return pd.to_numeric(column)
+    return _nan_for_none(column)
+
+
+def _nan_for_none(column):
+    return column.where(column.notna(), float("nan"))
 
 
 def turning_points_frame(analysis: Analysis):
     """The turning points of ``analysis`` as a pandas DataFrame: t, amplitude, sigma, used,
-    why not (``excluded_reason``) and the fitted envelope."""
-    import pandas as pd
-
-    from mcfit.report import TURNING_POINT_COLUMNS, turning_points_table
-
-    table = pd.DataFrame(turning_points_table(analysis), columns=TURNING_POINT_COLUMNS)
-    return table.drop(columns="source").astype({"amplitude": float, "sigma": float,
-                                                "envelope": float})
+    why not (``excluded_reason``) and the fitted envelope
+    (:attr:`Analysis.turning_points`)."""
+    return analysis.turning_points
 
 
 def _checked(check, options):

@@ -1,8 +1,8 @@
 """Running the fit over many files: one job per file, results in input order as they finish.
 
-Each job reads, analyses, formats and (optionally) plots one record and returns a plain
-string in the chosen output format only, so worker processes send back little and the
-command line only writes.
+Each job reads, analyses and (optionally) plots one record and returns its results as
+plain data (:meth:`mcfit.analysis.Analysis.to_dict`), small to send back from a worker
+process; the command line alone formats them as text, CSV or JSON.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 from mcfit.errors import InputError, McfitError, UsageError
 from mcfit.files import describe_os_error, display_name
 
-__all__ = ["FitOptions", "JobResult", "FileResult", "Inputs", "find_inputs", "expand_inputs",
+__all__ = ["FitOptions", "FileResult", "Inputs", "find_inputs", "expand_inputs",
            "run_jobs",
            "plot_path_for", "available_cpus"]
 
@@ -52,10 +52,10 @@ class FitOptions:
     bootstrap: int = 0
     seed: int | None = None
     method: str = "auto"
-    output_format: str = "text"
+    output_format: str = "text"  # how the command line writes the results (not the jobs)
     pendulum: bool = False
     degrees: bool | None = None  # None: from the signal column's name
-    turning_points_out: bool = False  # also give each record's turning points as CSV rows
+    turning_points_out: bool = False  # also give each record's turning points
     start: float | None = None  # window of the record to fit (time or cycle)
     end: float | None = None
     run: int | None = None  # of a file's runs side by side, the one to fit (None: all)
@@ -68,36 +68,27 @@ class FitOptions:
 
 
 @dataclass(frozen=True)
-class JobResult:
-    """What one file produced: its status, its output and any plot problem.
-
-    ``output`` is the record in ``FitOptions.output_format``: the text report, one JSON
-    line (no newline) or one CSV row (with its newline).
-    """
-
-    source: str
-    status: str
-    error: str | None
-    output: str
-    plot_error: str | None = None
-    turning_points: str = ""  # CSV rows of the turning points, when asked for
-
-
-@dataclass(frozen=True)
 class FileResult:
     """What one file produced: a result per record (one per run side by side, in file
-    order) and, for several runs in the text format, a summary over them."""
+    order), each a dict: ``analysis``, the record's :meth:`Analysis.to_dict` with its
+    ``detail``; ``plot_error``, why its figure could not be written, or None;
+    ``turning_points``, its :meth:`Analysis.turning_point_table` where asked for, else
+    empty. ``source`` is the file's name as the results give it."""
 
-    records: tuple[JobResult, ...]
-    summary: str = ""
+    source: str
+    records: tuple[dict, ...]
 
     @classmethod
-    def failed(cls, source, message, options):
+    def failed(cls, source, message):
         from mcfit.analysis import failed_analysis
 
         analysis = failed_analysis(_display_name(source), message)
-        return cls((JobResult(source=analysis.source, status=analysis.status,
-                              error=analysis.error, output=_format(analysis, options)),))
+        return cls(_display_name(source), (_record_result(analysis),))
+
+
+def _record_result(analysis, plot_error=None, turning_points=()) -> dict:
+    return {"analysis": analysis.to_dict(detail=True), "plot_error": plot_error,
+            "turning_points": list(turning_points)}
 
 
 # The first line of each file mcfit writes: results as CSV, turning points as CSV, a text
@@ -263,7 +254,8 @@ def plot_path_for(source: str, plot_dir: str, taken: set) -> str:
 
 
 def _job(argument):
-    """Read, analyse, format and plot one record; never raises, not even for a bug.
+    """Read, analyse and plot one record (:class:`FileResult`); never raises, not even for
+    a bug.
 
     A bad file is an expected failure with its own message. Any other exception is a bug
     in mcfit, but losing the rest of a batch to it would be worse: the record is reported
@@ -280,7 +272,7 @@ def _job(argument):
         detail = detail if len(detail) <= 300 else detail[:297] + "..."
         message = (f"internal error while fitting {_display_name(source)}: "
                    f"{type(error).__name__}: {detail} (a bug in mcfit; please report it)")
-    return FileResult.failed(source, message, options)
+    return FileResult.failed(source, message)
 
 
 def _job_for(source, options, plot_path):
@@ -292,17 +284,12 @@ def _job_for(source, options, plot_path):
                                rate=options.rate, kind=options.kind, domain=options.domain,
                                run=options.run, angle_from=options.angle_from)
     except McfitError as error:
-        return FileResult.failed(source, _message(error, source), options)
+        return FileResult.failed(source, _message(error, source))
     several = len(records) > 1
-    done = [_record_job(source, record, options,
-                        run_plot_path(plot_path, record.run) if several else plot_path)
-            for record in records]
-    summary = ""
-    if several and options.output_format == "text":
-        from mcfit.report import runs_summary
-
-        summary = runs_summary(_display_name(source), [analysis for analysis, _ in done])
-    return FileResult(tuple(result for _, result in done), summary)
+    return FileResult(_display_name(source), tuple(
+        _record_job(source, record, options,
+                    run_plot_path(plot_path, record.run) if several else plot_path)
+        for record in records))
 
 
 def run_plot_path(plot_path, run):
@@ -315,11 +302,11 @@ def run_plot_path(plot_path, run):
 
 
 def _record_job(source, record, options, plot_path):
-    """(analysis, result) of one record read from ``source``."""
+    """The result (a dict, as :class:`FileResult` holds them) of one record read from
+    ``source``."""
     import numpy as np
 
     from mcfit.analysis import analyse_record, failed_analysis
-    from mcfit.report import turning_points_rows
 
     try:
         analysis = analyse_record(record, criterion=options.criterion, model=options.model,
@@ -342,21 +329,8 @@ def _record_job(source, record, options, plot_path):
                          f"{describe_os_error(error)}."
         except (ValueError, McfitError) as error:
             plot_error = f"cannot write plot {display_name(plot_path)}: {error}"
-    rows = turning_points_rows(analysis) if options.turning_points_out else ""
-    return analysis, JobResult(source=analysis.source, status=analysis.status,
-                               error=analysis.error, output=_format(analysis, options),
-                               plot_error=plot_error, turning_points=rows)
-
-
-def _format(analysis, options):
-    """The record in the one format the command line writes (each costs a full summary)."""
-    from mcfit import report
-
-    if options.output_format == "json":
-        return report.to_json(analysis)
-    if options.output_format == "csv":
-        return report.to_csv_row(analysis, bootstrap=options.bootstrap > 0)
-    return report.to_text(analysis)
+    points = analysis.turning_point_table() if options.turning_points_out else ()
+    return _record_result(analysis, plot_error, points)
 
 
 def _display_name(source) -> str:
@@ -414,7 +388,7 @@ def run_jobs(sources, options: FitOptions, plot_paths, jobs: int = 1):
     if multiprocessing.get_start_method() == "fork":
         # Forked workers inherit what is imported here: the numerical stack is then imported
         # once (about 1.4 s of CPU) instead of once in every worker.
-        for module in ("mcfit.analysis", "mcfit.io", "mcfit.report"):
+        for module in ("mcfit.analysis", "mcfit.io"):
             importlib.import_module(module)
     yield from _run_in_workers(arguments, jobs)
 
@@ -592,7 +566,7 @@ def _collect(worker):
 
 def _lost(worker):
     """The error result of a record whose worker died while fitting it."""
-    (_, (source, options, _)) = worker.task
+    (_, (source, _, _)) = worker.task
     code = worker.process.exitcode
     if code is not None and code < 0:
         try:
@@ -606,4 +580,4 @@ def _lost(worker):
         cause = f"ended with exit code {code}"
     message = (f"the worker process fitting {_display_name(source)} {cause}; fit it again "
                "alone, with `jobs=1`, or free some memory.")
-    return FileResult.failed(source, message, options)
+    return FileResult.failed(source, message)

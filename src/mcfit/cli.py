@@ -545,19 +545,21 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
     show_progress = total > 1 and _is_terminal(sys.stderr)
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
                 if show_progress else None)
+    from mcfit import report
+
     try:
         if output_format == "csv":
-            from mcfit.report import csv_header
-
-            target.write(csv_header(bootstrap))
+            target.write(report.csv_header(bootstrap))
         for file_result in results:
             done += 1
             for result in file_result.records:
-                failures += _write_result(result, target, points, output_format, written)
-                written += output_format == "text" and (result.status == "ok"
-                                                        or target.temporary is not None)
-            if file_result.summary:
-                target.write("\n" + file_result.summary)
+                failures += _write_result(result, target, points, output_format, written,
+                                          bootstrap)
+                written += output_format == "text" and (
+                    result["analysis"]["status"] == "ok" or target.temporary is not None)
+            if output_format == "text" and len(file_result.records) > 1:
+                target.write("\n" + report.runs_summary(
+                    file_result.source, [r["analysis"] for r in file_result.records]))
             if progress is not None:
                 progress.update(1)
     except (KeyboardInterrupt, _Stopped) as interruption:
@@ -588,23 +590,33 @@ def _is_terminal(stream) -> bool:
         return False
 
 
-def _write_result(result, target, points, output_format, written):
-    """Write one record's output and errors; return how many failures it counts."""
+def _write_result(result, target, points, output_format, written, bootstrap=False):
+    """Write one record's output (from its plain data) and errors; return how many
+    failures it counts."""
+    from mcfit import report
+
+    data = result["analysis"]
     failures = 0
-    points.write(result.turning_points)
+    points.write(report.turning_points_rows(result["turning_points"]))
+    if output_format == "json":
+        output = report.to_json(data)
+    elif output_format == "csv":
+        output = report.to_csv_row(data, bootstrap=bootstrap)
+    else:
+        output = report.to_text(data)
     # The library names options in Python spelling; here they are flags.
-    output = for_command_line(result.output)
-    if result.status != "ok":
+    output = for_command_line(output)
+    if data["status"] != "ok":
         failures += 1
-        click.echo(f"Error: {printable(for_command_line(result.error))}", err=True)
-    if result.plot_error:
+        click.echo(f"Error: {printable(for_command_line(data['error']))}", err=True)
+    if result["plot_error"]:
         failures += 1
-        click.echo(f"Error: {printable(result.plot_error)}", err=True)
+        click.echo(f"Error: {printable(result['plot_error'])}", err=True)
     if output_format == "json":
         target.write(output + "\n")
     elif output_format == "csv":
         target.write(output)
-    elif result.status == "ok" or target.temporary is not None:
+    elif data["status"] == "ok" or target.temporary is not None:
         # On stdout the Error line above (stderr) says all a failed record's report would;
         # a report file (-o) keeps it, so that the file accounts for every record.
         target.write(("\n" if written else "") + _printable_lines(output))

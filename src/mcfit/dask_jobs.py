@@ -191,7 +191,7 @@ def _result(future, argument):
 
 
 def _failed(argument, error):
-    source, options, _ = argument
+    source = argument[0]
     name = batch._display_name(source)
     kind = type(error).__name__
     if kind == "KilledWorker":
@@ -208,7 +208,7 @@ def _failed(argument, error):
     else:
         message = (f"the Dask cluster could not fit {name}: {kind}: {_one_line(error)}; "
                    "check the scheduler and workers, then fit it again.")
-    return batch.FileResult.failed(source, message, options)
+    return batch.FileResult.failed(source, message)
 
 
 def _one_line(error, longest=300):

@@ -77,7 +77,6 @@ def _smallest_rate_q(fit):
 
 
 def _chain_bias(t, turning, fit, noise_stderr):
-    from mcfit.analysis import fitted_values  # noqa: PLC0415 (import cycle)
     from mcfit.errors import McfitError
     from mcfit.turning import find_turning_points
 
@@ -93,10 +92,22 @@ def _chain_bias(t, turning, fit, noise_stderr):
         # Refined as far as the record's crests were: until their shifts are within the
         # record's sample noise (a noise-free waveform would take every pass).
         found = find_turning_points(times, x, settle_noise=_positive(turning.noise_sigma))
-        again = fitted_values(found, fit.model)
+        again = _fitted_values(found, fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
     return {k: (again[k] - v[k]) / noise_stderr[k] for k in fit.selection.terms}
+
+
+def _fitted_values(turning, model) -> dict:
+    """The values of ``model`` fitted to the used turning points, and nothing else, with
+    their uncertainties where every one is finite and > 0 (as the record's fit had)."""
+    from mcfit.fit.decay_fit import fit_model_values
+
+    used = turning.used
+    sigma = turning.sigma[used]
+    usable = np.all(np.isfinite(sigma)) and np.all(sigma > 0)
+    return fit_model_values(turning.t[used], turning.y[used], sigma if usable else None,
+                            model=model)
 
 
 def _positive(value):

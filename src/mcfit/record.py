@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Record", "detect_kind"]
+__all__ = ["Record", "coefficient_units", "detect_kind"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -69,6 +69,24 @@ class Record:
         run = f", run={self.run!r}" if self.run else ""
         return (f"Record(source={self.source!r}{run}, kind={self.kind!r}, "
                 f"samples={self.t.size}, {span})")
+
+    def to_dict(self) -> dict:
+        """What the record is, as plain data (JSON-ready; not its samples): source, run,
+        kind, domain, number of samples, the columns chosen and all, units and notes."""
+        return {"source": self.source, "run": self.run, "kind": self.kind,
+                "domain": self.domain, "samples": int(self.t.size),
+                "time_column": self.time_column, "signal_column": self.signal_column,
+                "time_unit": self.time_unit, "signal_unit": self.signal_unit,
+                "columns": list(self.columns), "notes": list(self.notes)}
+
+
+def coefficient_units(signal_unit, per) -> dict:
+    """The units of y0, a, b and c for a signal in ``signal_unit`` (``"U"`` when None) and
+    time in ``per`` ("s", "cycle"): ``{"y0": "mm", "a": "1/(mm*s)", "b": "1/s",
+    "c": "mm/s"}`` (dy/dt = -c - b*y - a*y**2)."""
+    unit = signal_unit or "U"
+    factor = f"({unit})" if any(mark in unit for mark in "/* ") else unit
+    return {"y0": unit, "a": f"1/({factor}*{per})", "b": f"1/{per}", "c": f"{factor}/{per}"}
 
 
 def detect_kind(t, x):

@@ -92,6 +92,36 @@ class DecayFit:
     def __repr__(self):
         return fit_repr(self, ("y0",) + tuple(self.selection.terms))
 
+    def to_dict(self) -> dict:
+        """The fit as plain data (JSON-ready; None where a number is missing or not
+        finite): the model with its evidence, y0, a, b, c and Q with standard errors in
+        the units of ``t`` and ``y``, the candidates' scores, and ``domain``, ``n_points``
+        and ``correlation`` (``"a,b"`` -> rho)."""
+        from mcfit import plain
+
+        selection = self.selection
+        out = {"model": self.model, "domain": self.domain, "method": self.method,
+               "method_reason": self.method_reason, "resolved": bool(self.resolved),
+               "regimes": {name: bool(present) for name, present in self.regimes.items()},
+               "params": {k: {"value": plain.number(self.values[k]),
+                              "stderr": plain.number(self.stderr[k])} for k in PARAMETERS},
+               "t0": plain.number(self.t0),
+               "q": plain.q_summary(self.q_summary, self.q_lower_bound),
+               "fit": {"criterion": self.criterion, "forced": bool(self.forced),
+                       "rms": plain.number(self.rms),
+                       "reduced_chi_square": plain.number(self.reduced_chi_square),
+                       "noise_from_residuals": bool(self.noise_from_residuals),
+                       "lrt_p_values": _by_regime(self.lrt_p_values),
+                       "alpha": plain.number(selection.alpha),
+                       "preferred": selection.preferred, "ties": list(selection.ties),
+                       "near_threshold": _by_regime(selection.near_threshold)},
+               "candidates": plain.candidates(self.candidates),
+               "n_points": int(self.n_points), "correlation": plain.numbers(self.correlation)}
+        if self.bootstrap is not None:
+            out["bootstrap"] = _plain_bootstrap(self.bootstrap)
+        out["warnings"] = list(self.warnings)
+        return out
+
 
 def fit_decay(t, y, sigma=None, *, period=None, period_sigma=None, domain="time",
               criterion="aicc", model=None, alpha=LRT_ALPHA, bootstrap=0,
@@ -326,3 +356,20 @@ def _with_bootstrap(fit, record, candidates, alpha, count, rng):
                         if result["n"] else
                         f"no bootstrap refit of {count} converged: no intervals")
     return replace(fit, bootstrap=result, warnings=tuple(warnings))
+
+
+def _by_regime(p_values):
+    """``{term: p}`` as ``{regime name: p}`` (plain numbers)."""
+    from mcfit import plain
+
+    return {REGIME_NAMES[k]: plain.number(p) for k, p in p_values.items()}
+
+
+def _plain_bootstrap(boot):
+    """A bootstrap summary (:func:`mcfit.fit.uncertainty.bootstrap`) as plain data."""
+    from mcfit import plain
+
+    intervals = boot["interval_95"]
+    return {**boot, "models": plain.numbers(boot["models"]),
+            "interval_95": None if intervals is None else
+            {k: [plain.number(low), plain.number(high)] for k, (low, high) in intervals.items()}}

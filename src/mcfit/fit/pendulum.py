@@ -253,6 +253,20 @@ class PendulumFit(DecayFit):
         out[order] = theta / scale
         return out
 
+    def to_dict(self) -> dict:
+        """:meth:`DecayFit.to_dict` with the pendulum's angle unit and small-angle period
+        T0 in s (``pendulum``)."""
+        from mcfit import plain
+
+        out = super().to_dict()
+        warnings = out.pop("warnings")  # kept last
+        out["pendulum"] = {
+            "angle_unit": self.angle_unit,
+            "small_angle_period": plain.number(self.small_angle_period),
+            "small_angle_period_stderr": plain.number(self.small_angle_period_stderr)}
+        out["warnings"] = warnings
+        return out
+
 
 def fit_pendulum(t, y, sigma=None, *, period=None, period_sigma=None, signs=None,
                  degrees=False, amplitudes="peak", criterion="aicc", model=None,

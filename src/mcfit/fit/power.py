@@ -10,8 +10,8 @@ import numpy as np
 
 from mcfit import decay
 from mcfit.fit.candidates import Candidate, information_criteria
+from mcfit.fit.models import POWER, REGIME_NAMES
 from mcfit.fit.reported import lmfit_least_squares
-from mcfit.fit.models import POWER
 from mcfit.fit.reprs import fit_repr
 
 __all__ = ["PowerLawFit", "fit_power_law"]
@@ -52,6 +52,30 @@ class PowerLawFit:
 
     def __repr__(self):
         return fit_repr(self, ("y0", "k", "n"))
+
+    def to_dict(self) -> dict:
+        """The fit as plain data (JSON-ready; None where a number is missing or not
+        finite), in the form of :meth:`mcfit.fit.DecayFit.to_dict`: y0 with a, b and c 0,
+        and the law's y0, k and n with their standard errors as ``power_law``."""
+        from mcfit import plain
+
+        law = {"y0": self.values["y0"], "a": 0.0, "b": 0.0, "c": 0.0}
+        return {"model": self.model, "domain": self.domain, "method": "turning-points",
+                "method_reason": None, "resolved": True,
+                "regimes": dict.fromkeys(REGIME_NAMES.values(), False),
+                "params": {k: {"value": plain.number(v), "stderr": plain.number(
+                    self.stderr["y0"] if k == "y0" else None)} for k, v in law.items()},
+                "t0": plain.number(self.t0), "q": plain.q_summary(self.q_summary),
+                "fit": {"criterion": self.criterion, "forced": bool(self.forced),
+                        "rms": plain.number(self.rms),
+                        "reduced_chi_square": plain.number(self.reduced_chi_square),
+                        "noise_from_residuals": bool(self.noise_from_residuals)},
+                "candidates": plain.candidates(self.candidates),
+                "n_points": int(self.n_points),
+                "power_law": {**plain.numbers(self.values),
+                              **{f"{k}_stderr": plain.number(e)
+                                 for k, e in self.stderr.items()}},
+                "warnings": list(self.warnings)}
 
 
 def fit_power_law(scaled, t, y, sigma, omega, domain, criterion, noise_from_residuals):

@@ -139,6 +139,20 @@ class WaveformFit(DecayFit):
     damping_form_reason: str | None = None
     physical: dict = field(default_factory=dict)
 
+    def to_dict(self) -> dict:
+        """:meth:`DecayFit.to_dict` with the damping form and the forces' coefficients."""
+        from mcfit import plain
+
+        out = super().to_dict()
+        warnings = out.pop("warnings")
+        out["damping_form"] = self.damping_form
+        out["damping_form_reason"] = self.damping_form_reason
+        out["physical"] = {name: {**entry, "value": plain.number(entry["value"]),
+                                  "stderr": plain.number(entry["stderr"])}
+                           for name, entry in self.physical.items()}
+        out["warnings"] = warnings
+        return out
+
 
 @dataclass(frozen=True)
 class WaveformStart:

@@ -98,6 +98,32 @@ class TurningPoints:
         """Number of used turning points."""
         return int(np.count_nonzero(self.used))
 
+    def to_dict(self, *, points=False) -> dict:
+        """The turning points as plain data (JSON-ready; None where a number is missing or
+        not finite): how many are used, the period and its drift, where the free decay
+        starts, how many were left out for each reason, the notes and warnings; with
+        ``points`` also each point's t, amplitude, sigma, used and excluded_reason."""
+        from mcfit.plain import number
+
+        excluded = {}
+        for reason, used in zip(self.excluded_reason, self.used):
+            if not used:
+                excluded[reason or "other"] = excluded.get(reason or "other", 0) + 1
+        out = {"count": self.count, "domain": self.domain, "period": number(self.period),
+               "period_sigma": number(self.period_sigma),
+               "period_drift": number(self.period_drift),
+               "release_time": number(self.release_time),
+               "noise_sigma": number(self.noise_sigma), "excluded": excluded,
+               "notes": list(self.notes), "warnings": list(self.warnings)}
+        if points:
+            out["points"] = [
+                {"t": number(t), "amplitude": number(y), "sigma": number(s), "used": bool(u),
+                 "excluded_reason": reason or None}
+                for t, y, s, u, reason in zip(self.t.tolist(), self.y.tolist(),
+                                              self.sigma.tolist(), self.used.tolist(),
+                                              self.excluded_reason)]
+        return out
+
 
 def _frozen(array):
     array = np.ascontiguousarray(array)

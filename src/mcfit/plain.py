@@ -1,0 +1,42 @@
+"""Plain data for JSON: the conversions every result's ``to_dict`` shares (no numpy types,
+None for what is missing or not finite, since JSON has no NaN). Standard library only."""
+
+from __future__ import annotations
+
+import math
+
+__all__ = ["number", "numbers", "q_summary", "candidates"]
+
+_Q_KEYS = ("initial", "final", "min", "max")
+
+
+def number(value):
+    """``value`` as a float, or None where it is missing, NaN or infinite."""
+    if value is None:
+        return None
+    value = float(value)
+    return value if math.isfinite(value) else None
+
+
+def numbers(values) -> dict:
+    """Each value of the mapping ``values`` through :func:`number`."""
+    return {k: number(v) for k, v in values.items()}
+
+
+def q_summary(summary, lower_bound=None) -> dict:
+    """Q initial, final, min and max with their standard errors (None where unknown) from a
+    fit's ``q_summary``, and the one-sided bound of a fit that found no damping."""
+    summary = summary or {}
+    out = {k: number(summary.get(k)) for k in _Q_KEYS}
+    out.update({f"{k}_stderr": number(summary.get(f"{k}_stderr")) for k in _Q_KEYS})
+    out["lower_bound"] = number(lower_bound)
+    return out
+
+
+def candidates(fitted) -> list[dict]:
+    """The candidate models' scores (:class:`mcfit.fit.Candidate` each); a candidate far
+    from contention whose chi-square was estimated, not fitted, says so."""
+    return [{"model": c.model, "n_params": int(c.n_params),
+             "chi_square": number(c.chi_square), "aicc": number(c.aicc),
+             "bic": number(c.bic), "converged": bool(c.success),
+             **({"estimated": True} if c.estimated else {})} for c in fitted]
