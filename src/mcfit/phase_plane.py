@@ -39,6 +39,10 @@ NODES = 16
 FINE = 64
 _NEWTON_ITERATIONS = 8  # per half-cycle, one after the other (the fallback)
 _GLOBAL_ITERATIONS = 60  # all at once; a stop guessed too early moves a half-cycle a step
+# Iterations in a row with the same held half-cycles after which a solution that has not
+# converged is given up (Newton's method converges within 8 where it does; near a stop it
+# can creep at a constant rate and stall above the tolerance).
+_STALLED = 12
 _HALF_PI = 0.5 * math.pi
 # Above this damping ratio (Q below about 2.6) a half-cycle's changes in
 # phase_plane_differences are taken from every set's own interpolant.
@@ -99,10 +103,19 @@ def phase_plane_motion(t, y0, theta0, omega, a, b, c):
                                       v, dtype=float)) for v in (y0, theta0, omega, a, b, c))))
     if not (np.any(a) or np.any(b) or np.any(c)):
         return y0 * np.cos(omega * t + theta0)  # no friction: the undamped oscillation
+    return _motion(t, y0, theta0, omega, a, b, c, at_once=True)
+
+
+def _motion(t, y0, theta0, omega, a, b, c, at_once):
+    """As :func:`phase_plane_motion` for parameter columns of shape (m, 1); the
+    half-cycles one after the other unless ``at_once``."""
     # A trial parameter set of a solver may bring a swing to a standstill inside a
     # half-cycle (D -> 0): its values are then huge but finite, and the solver steps back.
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        *nodes, final = _nodes(float(t[-1]), y0, theta0, omega, a, b, c)
+        if at_once:
+            *nodes, final = _nodes(float(t[-1]), y0, theta0, omega, a, b, c)
+        else:
+            *nodes, final = _nodes_one_by_one(float(t[-1]), y0, theta0, omega, a, b, c)
         x = _with_final_swing(t, _sampled(t, *nodes), final, (a, b, c), omega[:, 0])
     return np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300)
 
@@ -149,10 +162,14 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     first = None
     t_end = float(t[-1])
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        if (np.any(a) or np.any(b) or np.any(c)) and np.all(base == base[0]):
+        damped = np.any(a) or np.any(b) or np.any(c)
+        if damped and np.all(base == base[0]):
             first = _first_solution(t_end, y0, theta0 - base, omega, a, b, c, memory)
-        if first is None:
-            x = phase_plane_motion(t, *sets.T)
+        if first is None or first is False:
+            # Where Newton's method failed for set 0 it fails for its neighbours too:
+            # every set one half-cycle after the other at once.
+            x = (_motion(t, y0, theta0, omega, a, b, c, at_once=first is None)
+                 if damped else phase_plane_motion(t, *sets.T))
             return x[0], x[1:] - x[0]
         solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
@@ -187,7 +204,8 @@ def _damping_ratio(amplitudes, a, b, c, omega):
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     """The half-cycles of set 0 (:func:`_all_half_cycles`), started from the last
-    solution in ``memory`` where it has as many, or None where they are not found."""
+    solution in ``memory`` where it has as many; None where they are not solved at once
+    (too many, or too few to reach ``t_end``), False where Newton's method fails."""
     count = float(np.ceil((omega[0, 0] * t_end + phi[0, 0]) / math.pi)) + 2
     if not _fits_at_once(count, y0.shape[0]):
         return None
@@ -198,16 +216,19 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     if last is not None and np.array_equal(memory["key"], key):
         return last
     guesses = ([last[0]] if last is not None and last[0].shape[1] == count else []) + [None]
+    found = False
     for guess in guesses:
         try:
             first = _all_half_cycles(count, t_end, y0[:1], phi[:1], omega[:1], a[:1], b[:1],
                                      c[:1], guess)
         except np.linalg.LinAlgError:
             first = None
-        if first is not None and not isinstance(first, str):
+        if isinstance(first, str):
+            found = None
+        elif first is not None:
             memory.update(key=key, solution=first)
             return first
-    return None
+    return found
 
 
 def _chord(first, y0, phi0, omega, a, b, c):
@@ -353,7 +374,7 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         guess = np.repeat(decay.amplitude(elapsed, y0, a, b, c)[..., None], _S.size, axis=2)
     omega3 = omega[..., None]
     identity, ones = np.eye(_S.size), np.ones(guess.shape)
-    held_before = None
+    held_before, steady = None, 0
     for _ in range(_GLOBAL_ITERATIONS):
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
         free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
@@ -369,8 +390,12 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         change = np.max(np.abs(step[relevant]), initial=0.0)
         if not np.isfinite(change + size):
             return None
-        if change <= 1e-14 * size and held_before is not None and np.array_equal(held, held_before):
+        same = held_before is not None and np.array_equal(held, held_before)
+        if change <= 1e-14 * size and same:
             break
+        steady = steady + 1 if same else 0
+        if steady >= _STALLED:
+            return None
         held_before = held
     else:
         return None
