@@ -488,17 +488,167 @@ def _nodes_one_by_one(t_end, amplitude, theta0, omega, a, b, c):
 def _with_final_swing(t, x, final, coefficients, omega):
     """The end of a decay that stops, from the turning point where :func:`_stuck` holds:
     the last swings are short of crossing 0 and the friction changes much within them, so
-    they are integrated in x and xdot by :func:`mcfit.motion.integrate_accurate` (which
-    holds the mass where static friction wins)."""
-    from mcfit.motion import damping_terms, integrate_accurate  # noqa: PLC0415
-
-    for i, (start, amplitude, sign) in enumerate(final):
-        after = t >= start
-        if np.isfinite(start) and np.any(after):
-            terms = damping_terms(*(k[i, 0] for k in coefficients))
-            x[i, after] = integrate_accurate(sign * amplitude, 0.0, omega[i], terms,
-                                             t[after] - start).x
+    they are solved in x and xdot, every set at once (:func:`_final_swings`), and the mass
+    is held where static friction wins (as :func:`mcfit.motion.integrate_accurate` does).
+    """
+    rows = [i for i, start in enumerate(final[:, 0])
+            if np.isfinite(start) and t.size and t[-1] >= start]
+    if rows:
+        a, b, c = (np.array([k[i, 0] for i in rows]) for k in coefficients)
+        swung = _final_swings(t, final[rows], a, b, c, omega[rows])
+        for i, values in zip(rows, swung):
+            after = t >= final[i, 0]
+            x[i, after] = values
     return x
+
+
+# Collocation points of a piece of a half-swing of the final swings. A piece spans a
+# half period (the reversal of a swing about a centre held still) or a tenth of one after
+# it: the motion continued past its reversal nears a singularity of the friction's
+# amplitude, which a longer piece would reach.
+_SWING_NODES = 24
+_SWING_S, _SWING_INTEGRATE, _ = _chebyshev_matrices(_SWING_NODES, 2)
+# Node values -> Chebyshev coefficients on the piece.
+_SWING_FIT = np.polynomial.chebyshev.chebfit(2 * _SWING_S - 1, np.eye(_SWING_NODES),
+                                             _SWING_NODES - 1)
+_SWING_PIECES = (1.0, 0.1)  # half periods: the first piece of a half-swing, the others
+_SWING_ITERATIONS = 30
+_MAX_PIECES = 400
+
+
+def _final_swings(t, final, a, b, c, omega):
+    """x at the times ``t >= start`` of each set after its stop (``final``: start,
+    amplitude, sign), a list of arrays. Each half-swing (a velocity of one sign) is
+    solved by Chebyshev collocation in time in pieces, every set at once (each set's
+    numbers its own: a set solved alone gives the same); at a turning point where the
+    spring does not overcome the friction, the mass is held."""
+    friction = _HALF_PI * omega
+    m = final.shape[0]
+    now = np.zeros(m)  # time since the stop
+    position, velocity = final[:, 2] * final[:, 1], np.zeros(m)
+    held = np.zeros(m, dtype=bool)
+    ends = t[-1] - final[:, 0]
+    pieces = [[] for _ in range(m)]  # (start, end, length, x in time) of each piece
+    for _ in range(_MAX_PIECES):
+        size = np.abs(position)
+        spring = omega * omega * size
+        held |= (velocity == 0.0) & ((spring <= friction * c)
+                                     | (spring <= friction * (c + size * (b + a * size))))
+        active = ~held & (now < ends)
+        if not np.any(active):
+            break
+        rows = np.flatnonzero(active)
+        length = np.where(velocity[rows] == 0.0, _SWING_PIECES[0], _SWING_PIECES[1]) * (
+            math.pi / omega[rows])
+        spans, x_of, v_of = _swing_piece(position[rows], velocity[rows], length,
+                                         omega[rows], a[rows], b[rows], c[rows])
+        for k, i in enumerate(rows):
+            pieces[i].append((now[i], now[i] + spans[k], length[k], x_of[k]))
+            now[i] += spans[k]
+            position[i] = x_of[k](spans[k])
+            velocity[i] = 0.0 if spans[k] < length[k] else v_of[k](spans[k])
+    else:
+        raise RuntimeError("the final swings did not stop")  # pragma: no cover
+    found = []
+    for i in range(m):
+        local = t[t >= final[i, 0]] - final[i, 0]
+        values = np.full(local.size, position[i])
+        for begin, stop, length, polynomial in pieces[i]:
+            inside = (local >= begin) & (local < stop)
+            values[inside] = polynomial(local[inside] - begin)
+        found.append(values)
+    return found
+
+
+def _swing_piece(x0, v0, length, omega, a, b, c):
+    """A piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set: the time
+    to the reversal of the velocity within it (``length`` where there is none), and x
+    and xdot as functions of the time since its start."""
+    sense = np.where(v0 != 0.0, np.sign(v0), -np.sign(x0))[:, None]  # of the velocity
+    push = sense * (_HALF_PI * omega)[:, None]
+    w2 = (omega * omega)[:, None]
+    scale = length[:, None, None] * _SWING_INTEGRATE  # integrates node values from 0
+    # The start: the friction held at its start value, a cosine about the moved centre.
+    size = np.hypot(x0, v0 / omega)
+    centre = -push[:, 0] / w2[:, 0] * (c + size * (b + a * size))
+    phase = omega[:, None] * length[:, None] * _SWING_S
+    x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
+         + (v0 / omega)[:, None] * np.sin(phase))
+    v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
+         + v0[:, None] * np.cos(phase))
+    n = _SWING_NODES
+    identity = np.broadcast_to(np.eye(n), scale.shape)
+    a3, b3, c3 = a[:, None], b[:, None], c[:, None]
+    last = math.inf
+    for _ in range(_SWING_ITERATIONS):
+        amplitude = np.maximum(np.sqrt(x * x + v * v / w2), 1e-300)
+        force = -w2 * x - push * (c3 + amplitude * (b3 + a3 * amplitude))
+        slope = push * (b3 + 2 * a3 * amplitude) / amplitude
+        residual = np.concatenate([x - x0[:, None] - np.einsum("mij,mj->mi", scale, v),
+                                   v - v0[:, None] - np.einsum("mij,mj->mi", scale, force)],
+                                  axis=1)
+        jacobian = np.block([[identity, -scale],
+                             [-scale * (-w2 - slope * x)[:, None, :],
+                              identity - scale * (-slope * v / w2)[:, None, :]]])
+        step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
+        x, v = x - step[:, :n], v - step[:, n:]
+        change = np.max(np.abs(step)) / np.max(size)
+        # Converged, or at the rounding floor (it stops falling).
+        if change <= 1e-14 or change > 0.5 * last:
+            break
+        last = change
+    x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
+    v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
+    spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
+    return spans, x_of, v_of
+
+
+class _Interpolant:
+    """The Chebyshev interpolant of node values on [0, length], callable at times."""
+
+    def __init__(self, coefficients, length):
+        self.coefficients, self.length = coefficients, length
+
+    def __call__(self, time):
+        return np.polynomial.chebyshev.chebval(2 * np.asarray(time) / self.length - 1,
+                                               self.coefficients)
+
+    def derivative(self):
+        return _Interpolant(np.polynomial.chebyshev.chebder(self.coefficients)
+                            * (2 / self.length), self.length)
+
+
+def _interpolant(values, length):
+    return _Interpolant(_SWING_FIT @ values, length)
+
+
+def _reversal(v_of, sense, length):
+    """The first time in (0, length] where the velocity of sign ``sense`` reaches 0
+    (Newton's method on the interpolant inside the bracket of a grid; ``length`` where
+    it does not)."""
+    grid = np.linspace(0.0, length, 33)
+    moving = sense * v_of(grid) > 0
+    moving[0] = True
+    stopped = np.flatnonzero(~moving)
+    if not stopped.size:
+        return length
+    low, high = grid[stopped[0] - 1], grid[stopped[0]]
+    rate = v_of.derivative()
+    time = 0.5 * (low + high)
+    for _ in range(60):
+        value = float(v_of(time))
+        if value == 0.0:
+            break
+        if sense * value > 0:
+            low = time
+        else:
+            high = time
+        then, time = time, time - value / float(rate(time))
+        if not low < time < high:
+            time = 0.5 * (low + high)
+        if abs(time - then) <= 1e-15 * length:
+            break
+    return time
 
 
 def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):
