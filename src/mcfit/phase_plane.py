@@ -174,25 +174,36 @@ def phase_plane_differences(t, parameters, steps, memory=None):
         solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
         j, s, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
-        shift = nodes[0][1:] - nodes[0][:1]
-        at_nodes = np.concatenate([nodes[k][1:] - nodes[k][:1] - nodes[k + 2][:1] * shift
-                                   for k in (1, 2)])  # phase, then amplitude, at fixed time
-        # Past the last node s = 1 (or the last two nodes are the same state at rest).
-        at_samples = at_nodes[:, j] + s * np.diff(at_nodes, axis=1)[:, j]
-        cos = np.cos(phase)
-        x = amplitude * cos
-        changes = (at_samples[shift.shape[0]:] * cos
-                   - at_samples[:shift.shape[0]] * (amplitude * np.sin(phase)))
+        x = amplitude * np.cos(phase)
         # Every set on its own in strongly damped half-cycles (the phase speed varies
         # much, the linear interpolation less accurate) and the last swings of a stop.
         strong = _damping_ratio(solved[0][0], a[0], b[0], c[0], omega[0]) > _STRONG
         exact = strong[np.minimum(j // FINE, strong.size - 1)] | (t >= np.min(final[:, 0]))
+        changes = np.empty((len(sets) - 1, t.size))
+        if not np.all(exact):
+            rest = slice(None) if not np.any(exact) else ~exact
+            changes[:, rest] = _interpolated_changes(nodes, j[rest], s[rest],
+                                                     amplitude[rest], phase[rest])
         if np.any(exact):
             moved = _with_final_swing(t[exact], _sampled(t[exact], *nodes), final, (a, b, c),
                                       omega[:, 0])
             x[exact], changes[:, exact] = moved[0], moved[1:] - moved[0]
     return (np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300),
             np.nan_to_num(changes, nan=0.0, posinf=1e300, neginf=-1e300))
+
+
+def _interpolated_changes(nodes, j, s, amplitude, phase):
+    """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
+    ``j`` at position ``s``, where set 0 has ``amplitude`` and total ``phase``: the
+    changes of phase and amplitude at fixed time, at the nodes (the change less its rate
+    times the node's shift in time), interpolated linearly."""
+    shift = nodes[0][1:] - nodes[0][:1]
+    at_nodes = np.concatenate([nodes[k][1:] - nodes[k][:1] - nodes[k + 2][:1] * shift
+                               for k in (1, 2)])  # phase, then amplitude, at fixed time
+    # Past the last node s = 1 (or the last two nodes are the same state at rest).
+    at_samples = at_nodes[:, j] + s * np.diff(at_nodes, axis=1)[:, j]
+    return (at_samples[shift.shape[0]:] * np.cos(phase)
+            - at_samples[:shift.shape[0]] * (amplitude * np.sin(phase)))
 
 
 def _damping_ratio(amplitudes, a, b, c, omega):
