@@ -29,7 +29,7 @@ TINY = dataclasses.replace(
     integrator_scenes=(bench.IntegratorScene("short Fig. 20.19", 0.1, 0.1, 0.01, 4.0, 0.5, 2.0),),
     fit_scenes=(bench.FitScene("short b", "b", 1.0, 0.0, 0.05, 0.0, 1.0, 30),
                 bench.FitScene("short abc", "abc", 4.0, 0.1, 0.1, 0.01, 0.5, 20)),
-    edge_records=1, edge_scenes=edges.EDGE_SCENES[-3:])
+    edge_records=1, edge_scenes=edges.EDGE_SCENES[-3:], mixed_records=2)
 
 # Issue 17's targets, one line each in the throughput section.
 TARGETS = ("turning points + fit per record", "the same with --method auto's choice",
@@ -71,7 +71,7 @@ def test_every_section_runs_and_writes_the_plots(tmp_path, monkeypatch):
     text = "\n".join(blocks)
     for heading in ("Integrators:", "Fitting:", "Verdicts and 95 %", "Methods against Q",
                     "Cycles:", "us/cycle", "Edges:", "Throughput:", "rec/s",
-                    "mcfit --help", "peak resident memory"):
+                    "mcfit --help", "peak resident memory", "Waveform:", "mixed batch"):
         assert heading in text
     for setting in ("dt = T/50", "dt = T/100", "rtol 1e-06", "closed form"):
         assert setting in text

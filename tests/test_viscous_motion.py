@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcfit.bench.reference_motion import integrate
-from mcfit.viscous_motion import coulomb_force, viscous_motion
+from mcfit.viscous_motion import coulomb_force, viscous_motion, viscous_motion_jacobian
 
 OMEGA = 2 * math.pi
 
@@ -44,3 +44,60 @@ def test_friction_stops_the_mass_off_centre_and_keeps_it_there():
 def test_the_coulomb_force_gives_the_averaged_term():
     # Coulomb friction mu removes 4*mu*A per cycle of energy w**2*A**2/2: dA/dt = -2*mu/(pi*w).
     assert 2 * coulomb_force(0.3, OMEGA) / (math.pi * OMEGA) == pytest.approx(0.3, rel=1e-15)
+
+
+def _central(tau, p, i, h):
+    up, down = np.array(p, dtype=float), np.array(p, dtype=float)
+    up[i] += h
+    down[i] -= h
+    return (viscous_motion(tau, *up) - viscous_motion(tau, *down)) / (2 * h)
+
+
+@settings(max_examples=25, deadline=None)
+@given(beta=st.floats(0.0, 2.0), mu=st.floats(0.05, 3.0),
+       theta0=st.floats(-3.1, 3.1).filter(lambda v: abs(math.sin(v)) > 1e-3),
+       y0=st.floats(0.5, 2.0))
+def test_the_jacobian_is_the_derivative_of_the_motion(beta, mu, theta0, y0):
+    """The closed-form derivatives in (y0, theta0, omega, beta, c) against central
+    differences of the motion, sticking within the record or not: within 1e-6 of the
+    largest derivative (the differences' own error is about 1e-8). A start at rest
+    (theta0 a multiple of pi) is a kink in theta0, where the friction's sign is chosen."""
+    tau = np.linspace(0.0, 6.0, 1201)
+    p = [y0, theta0, OMEGA, beta, 2 * mu / (math.pi * OMEGA)]
+    x, jacobian = viscous_motion_jacobian(tau, *p)
+    np.testing.assert_array_equal(x, viscous_motion(tau, *p))
+    for i in range(5):
+        expected = _central(tau, p, i, 1e-6 * max(abs(p[i]), 0.1))
+        scale = np.max(np.abs(expected)) + 1.0
+        assert np.max(np.abs(jacobian[i] - expected)) < 1e-6 * scale, i
+
+
+def test_the_jacobian_without_friction_is_the_damped_cosines():
+    """mu = 0: d/dbeta of exp(-beta*t)*(cos(wd*t) + beta/wd*sin(wd*t)), wd**2 = w**2 -
+    beta**2, differentiated by hand; and d/dc as the one-sided limit c -> 0+."""
+    tau = np.linspace(0.0, 5.0, 501)
+    beta = 0.8
+    damped = math.sqrt(OMEGA**2 - beta**2)
+    d_damped = -beta / damped
+    decay, cos, sin = np.exp(-beta * tau), np.cos(damped * tau), np.sin(damped * tau)
+    by_beta = (-tau * decay * (cos + beta / damped * sin)
+               + decay * (-tau * d_damped * sin + sin / damped - beta * d_damped / damped**2 * sin
+                          + beta / damped * tau * d_damped * cos))
+    _, jacobian = viscous_motion_jacobian(tau, 1.0, 0.0, OMEGA, beta, 0.0)
+    np.testing.assert_allclose(jacobian[3], by_beta, atol=1e-12)
+    h = 1e-9
+    one_sided = (viscous_motion(tau, 1.0, 0.0, OMEGA, beta, h)
+                 - viscous_motion(tau, 1.0, 0.0, OMEGA, beta, 0.0)) / h
+    np.testing.assert_allclose(jacobian[4], one_sided, atol=1e-5)
+
+
+def test_the_jacobian_of_a_stuck_mass_is_that_of_its_stop():
+    """From the stop on x is the turning point where the mass stuck: its derivatives are
+    the same at every later time, and the start at rest inside the dead band is x0."""
+    tau = np.linspace(0.0, 30.0, 3001)
+    x, jacobian = viscous_motion_jacobian(tau, 1.0, 0.0, OMEGA, 0.05, 0.02)
+    assert np.all(jacobian[:, -200:] == jacobian[:, -1:])
+    held, still = viscous_motion_jacobian(tau, 0.001, 0.0, OMEGA, 0.05, 0.02)
+    assert np.all(held == 0.001)
+    np.testing.assert_array_equal(still, np.outer([1.0, 0.0, 0.0, 0.0, 0.0],
+                                                  np.ones(tau.size)))

@@ -678,6 +678,8 @@ Sections:
                live (low Q with friction, viscous, a held start, large swings,
                a near tie, a beat, 8 bits): right, flagged or silently wrong
                per scene with 95 % intervals (5 records a scene, 60 with --full)
+  waveform     the default method on a mixed batch (half with Q <= 8) against
+               --method turning-points, and the waveform fit's time at Q 2-10
 
 The default quick grid runs in about five minutes on two cores; --full runs the
 whole grid (more steps, tolerances, SNRs and samples per cycle, 100 records a

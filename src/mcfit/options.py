@@ -29,7 +29,7 @@ FIT_METHODS = ("auto", "turning-points", "waveform")
 SIMULATE_METHODS = ("auto", "averaged", "cromer-euler", "symplectic", "accurate")
 FORMATS = ("text", "json", "csv")
 BENCH_SECTIONS = ("integrators", "fitting", "verdicts", "methods", "cycles", "edges",
-                  "throughput")
+                  "throughput", "waveform")
 # The report figure's panels: the record, the amplitudes with the fits (and residuals),
 # Q(t), the damping rate, Q and the period (backbone) against amplitude.
 PANELS = ("record", "amplitude", "q", "rate", "qamp", "backbone")

@@ -39,6 +39,10 @@ NODES = 16
 FINE = 64
 _NEWTON_ITERATIONS = 8  # per half-cycle, one after the other (the fallback)
 _GLOBAL_ITERATIONS = 60  # all at once; a stop guessed too early moves a half-cycle a step
+# Iterations in a row with the same held half-cycles after which a solution that has not
+# converged is given up (Newton's method converges within 8 where it does; near a stop it
+# can creep at a constant rate and stall above the tolerance).
+_STALLED = 12
 _HALF_PI = 0.5 * math.pi
 # Above this damping ratio (Q below about 2.6) a half-cycle's changes in
 # phase_plane_differences are taken from every set's own interpolant.
@@ -99,10 +103,19 @@ def phase_plane_motion(t, y0, theta0, omega, a, b, c):
                                       v, dtype=float)) for v in (y0, theta0, omega, a, b, c))))
     if not (np.any(a) or np.any(b) or np.any(c)):
         return y0 * np.cos(omega * t + theta0)  # no friction: the undamped oscillation
+    return _motion(t, y0, theta0, omega, a, b, c, at_once=True)
+
+
+def _motion(t, y0, theta0, omega, a, b, c, at_once):
+    """As :func:`phase_plane_motion` for parameter columns of shape (m, 1); the
+    half-cycles one after the other unless ``at_once``."""
     # A trial parameter set of a solver may bring a swing to a standstill inside a
     # half-cycle (D -> 0): its values are then huge but finite, and the solver steps back.
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        *nodes, final = _nodes(float(t[-1]), y0, theta0, omega, a, b, c)
+        if at_once:
+            *nodes, final = _nodes(float(t[-1]), y0, theta0, omega, a, b, c)
+        else:
+            *nodes, final = _nodes_one_by_one(float(t[-1]), y0, theta0, omega, a, b, c)
         x = _with_final_swing(t, _sampled(t, *nodes), final, (a, b, c), omega[:, 0])
     return np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300)
 
@@ -149,33 +162,48 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     first = None
     t_end = float(t[-1])
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
-        if (np.any(a) or np.any(b) or np.any(c)) and np.all(base == base[0]):
+        damped = np.any(a) or np.any(b) or np.any(c)
+        if damped and np.all(base == base[0]):
             first = _first_solution(t_end, y0, theta0 - base, omega, a, b, c, memory)
-        if first is None:
-            x = phase_plane_motion(t, *sets.T)
+        if first is None or first is False:
+            # Where Newton's method failed for set 0 it fails for its neighbours too:
+            # every set one half-cycle after the other at once.
+            x = (_motion(t, y0, theta0, omega, a, b, c, at_once=first is None)
+                 if damped else phase_plane_motion(t, *sets.T))
             return x[0], x[1:] - x[0]
         solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
         j, s, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
-        shift = nodes[0][1:] - nodes[0][:1]
-        at_nodes = np.concatenate([nodes[k][1:] - nodes[k][:1] - nodes[k + 2][:1] * shift
-                                   for k in (1, 2)])  # phase, then amplitude, at fixed time
-        # Past the last node s = 1 (or the last two nodes are the same state at rest).
-        at_samples = at_nodes[:, j] + s * np.diff(at_nodes, axis=1)[:, j]
-        cos = np.cos(phase)
-        x = amplitude * cos
-        changes = (at_samples[shift.shape[0]:] * cos
-                   - at_samples[:shift.shape[0]] * (amplitude * np.sin(phase)))
+        x = amplitude * np.cos(phase)
         # Every set on its own in strongly damped half-cycles (the phase speed varies
         # much, the linear interpolation less accurate) and the last swings of a stop.
         strong = _damping_ratio(solved[0][0], a[0], b[0], c[0], omega[0]) > _STRONG
         exact = strong[np.minimum(j // FINE, strong.size - 1)] | (t >= np.min(final[:, 0]))
+        changes = np.empty((len(sets) - 1, t.size))
+        if not np.all(exact):
+            rest = slice(None) if not np.any(exact) else ~exact
+            changes[:, rest] = _interpolated_changes(nodes, j[rest], s[rest],
+                                                     amplitude[rest], phase[rest])
         if np.any(exact):
             moved = _with_final_swing(t[exact], _sampled(t[exact], *nodes), final, (a, b, c),
                                       omega[:, 0])
             x[exact], changes[:, exact] = moved[0], moved[1:] - moved[0]
     return (np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300),
             np.nan_to_num(changes, nan=0.0, posinf=1e300, neginf=-1e300))
+
+
+def _interpolated_changes(nodes, j, s, amplitude, phase):
+    """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
+    ``j`` at position ``s``, where set 0 has ``amplitude`` and total ``phase``: the
+    changes of phase and amplitude at fixed time, at the nodes (the change less its rate
+    times the node's shift in time), interpolated linearly."""
+    shift = nodes[0][1:] - nodes[0][:1]
+    at_nodes = np.concatenate([nodes[k][1:] - nodes[k][:1] - nodes[k + 2][:1] * shift
+                               for k in (1, 2)])  # phase, then amplitude, at fixed time
+    # Past the last node s = 1 (or the last two nodes are the same state at rest).
+    at_samples = at_nodes[:, j] + s * np.diff(at_nodes, axis=1)[:, j]
+    return (at_samples[shift.shape[0]:] * np.cos(phase)
+            - at_samples[:shift.shape[0]] * (amplitude * np.sin(phase)))
 
 
 def _damping_ratio(amplitudes, a, b, c, omega):
@@ -187,7 +215,8 @@ def _damping_ratio(amplitudes, a, b, c, omega):
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     """The half-cycles of set 0 (:func:`_all_half_cycles`), started from the last
-    solution in ``memory`` where it has as many, or None where they are not found."""
+    solution in ``memory`` where it has as many; None where they are not solved at once
+    (too many, or too few to reach ``t_end``), False where Newton's method fails."""
     count = float(np.ceil((omega[0, 0] * t_end + phi[0, 0]) / math.pi)) + 2
     if not _fits_at_once(count, y0.shape[0]):
         return None
@@ -198,16 +227,19 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     if last is not None and np.array_equal(memory["key"], key):
         return last
     guesses = ([last[0]] if last is not None and last[0].shape[1] == count else []) + [None]
+    found = False
     for guess in guesses:
         try:
             first = _all_half_cycles(count, t_end, y0[:1], phi[:1], omega[:1], a[:1], b[:1],
                                      c[:1], guess)
         except np.linalg.LinAlgError:
             first = None
-        if first is not None and not isinstance(first, str):
+        if isinstance(first, str):
+            found = None
+        elif first is not None:
             memory.update(key=key, solution=first)
             return first
-    return None
+    return found
 
 
 def _chord(first, y0, phi0, omega, a, b, c):
@@ -353,7 +385,7 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         guess = np.repeat(decay.amplitude(elapsed, y0, a, b, c)[..., None], _S.size, axis=2)
     omega3 = omega[..., None]
     identity, ones = np.eye(_S.size), np.ones(guess.shape)
-    held_before = None
+    held_before, steady = None, 0
     for _ in range(_GLOBAL_ITERATIONS):
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
         free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
@@ -369,8 +401,12 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         change = np.max(np.abs(step[relevant]), initial=0.0)
         if not np.isfinite(change + size):
             return None
-        if change <= 1e-14 * size and held_before is not None and np.array_equal(held, held_before):
+        same = held_before is not None and np.array_equal(held, held_before)
+        if change <= 1e-14 * size and same:
             break
+        steady = steady + 1 if same else 0
+        if steady >= _STALLED:
+            return None
         held_before = held
     else:
         return None
@@ -463,17 +499,167 @@ def _nodes_one_by_one(t_end, amplitude, theta0, omega, a, b, c):
 def _with_final_swing(t, x, final, coefficients, omega):
     """The end of a decay that stops, from the turning point where :func:`_stuck` holds:
     the last swings are short of crossing 0 and the friction changes much within them, so
-    they are integrated in x and xdot by :func:`mcfit.motion.integrate_accurate` (which
-    holds the mass where static friction wins)."""
-    from mcfit.motion import damping_terms, integrate_accurate  # noqa: PLC0415
-
-    for i, (start, amplitude, sign) in enumerate(final):
-        after = t >= start
-        if np.isfinite(start) and np.any(after):
-            terms = damping_terms(*(k[i, 0] for k in coefficients))
-            x[i, after] = integrate_accurate(sign * amplitude, 0.0, omega[i], terms,
-                                             t[after] - start).x
+    they are solved in x and xdot, every set at once (:func:`_final_swings`), and the mass
+    is held where static friction wins (as :func:`mcfit.motion.integrate_accurate` does).
+    """
+    rows = [i for i, start in enumerate(final[:, 0])
+            if np.isfinite(start) and t.size and t[-1] >= start]
+    if rows:
+        a, b, c = (np.array([k[i, 0] for i in rows]) for k in coefficients)
+        swung = _final_swings(t, final[rows], a, b, c, omega[rows])
+        for i, values in zip(rows, swung):
+            after = t >= final[i, 0]
+            x[i, after] = values
     return x
+
+
+# Collocation points of a piece of a half-swing of the final swings. A piece spans a
+# half period (the reversal of a swing about a centre held still) or a tenth of one after
+# it: the motion continued past its reversal nears a singularity of the friction's
+# amplitude, which a longer piece would reach.
+_SWING_NODES = 24
+_SWING_S, _SWING_INTEGRATE, _ = _chebyshev_matrices(_SWING_NODES, 2)
+# Node values -> Chebyshev coefficients on the piece.
+_SWING_FIT = np.polynomial.chebyshev.chebfit(2 * _SWING_S - 1, np.eye(_SWING_NODES),
+                                             _SWING_NODES - 1)
+_SWING_PIECES = (1.0, 0.1)  # half periods: the first piece of a half-swing, the others
+_SWING_ITERATIONS = 30
+_MAX_PIECES = 400
+
+
+def _final_swings(t, final, a, b, c, omega):
+    """x at the times ``t >= start`` of each set after its stop (``final``: start,
+    amplitude, sign), a list of arrays. Each half-swing (a velocity of one sign) is
+    solved by Chebyshev collocation in time in pieces, every set at once (each set's
+    numbers its own: a set solved alone gives the same); at a turning point where the
+    spring does not overcome the friction, the mass is held."""
+    friction = _HALF_PI * omega
+    m = final.shape[0]
+    now = np.zeros(m)  # time since the stop
+    position, velocity = final[:, 2] * final[:, 1], np.zeros(m)
+    held = np.zeros(m, dtype=bool)
+    ends = t[-1] - final[:, 0]
+    pieces = [[] for _ in range(m)]  # (start, end, length, x in time) of each piece
+    for _ in range(_MAX_PIECES):
+        size = np.abs(position)
+        spring = omega * omega * size
+        held |= (velocity == 0.0) & ((spring <= friction * c)
+                                     | (spring <= friction * (c + size * (b + a * size))))
+        active = ~held & (now < ends)
+        if not np.any(active):
+            break
+        rows = np.flatnonzero(active)
+        length = np.where(velocity[rows] == 0.0, _SWING_PIECES[0], _SWING_PIECES[1]) * (
+            math.pi / omega[rows])
+        spans, x_of, v_of = _swing_piece(position[rows], velocity[rows], length,
+                                         omega[rows], a[rows], b[rows], c[rows])
+        for k, i in enumerate(rows):
+            pieces[i].append((now[i], now[i] + spans[k], length[k], x_of[k]))
+            now[i] += spans[k]
+            position[i] = x_of[k](spans[k])
+            velocity[i] = 0.0 if spans[k] < length[k] else v_of[k](spans[k])
+    else:
+        raise RuntimeError("the final swings did not stop")  # pragma: no cover
+    found = []
+    for i in range(m):
+        local = t[t >= final[i, 0]] - final[i, 0]
+        values = np.full(local.size, position[i])
+        for begin, stop, length, polynomial in pieces[i]:
+            inside = (local >= begin) & (local < stop)
+            values[inside] = polynomial(local[inside] - begin)
+        found.append(values)
+    return found
+
+
+def _swing_piece(x0, v0, length, omega, a, b, c):
+    """A piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set: the time
+    to the reversal of the velocity within it (``length`` where there is none), and x
+    and xdot as functions of the time since its start."""
+    sense = np.where(v0 != 0.0, np.sign(v0), -np.sign(x0))[:, None]  # of the velocity
+    push = sense * (_HALF_PI * omega)[:, None]
+    w2 = (omega * omega)[:, None]
+    scale = length[:, None, None] * _SWING_INTEGRATE  # integrates node values from 0
+    # The start: the friction held at its start value, a cosine about the moved centre.
+    size = np.hypot(x0, v0 / omega)
+    centre = -push[:, 0] / w2[:, 0] * (c + size * (b + a * size))
+    phase = omega[:, None] * length[:, None] * _SWING_S
+    x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
+         + (v0 / omega)[:, None] * np.sin(phase))
+    v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
+         + v0[:, None] * np.cos(phase))
+    n = _SWING_NODES
+    identity = np.broadcast_to(np.eye(n), scale.shape)
+    a3, b3, c3 = a[:, None], b[:, None], c[:, None]
+    last = math.inf
+    for _ in range(_SWING_ITERATIONS):
+        amplitude = np.maximum(np.sqrt(x * x + v * v / w2), 1e-300)
+        force = -w2 * x - push * (c3 + amplitude * (b3 + a3 * amplitude))
+        slope = push * (b3 + 2 * a3 * amplitude) / amplitude
+        residual = np.concatenate([x - x0[:, None] - np.einsum("mij,mj->mi", scale, v),
+                                   v - v0[:, None] - np.einsum("mij,mj->mi", scale, force)],
+                                  axis=1)
+        jacobian = np.block([[identity, -scale],
+                             [-scale * (-w2 - slope * x)[:, None, :],
+                              identity - scale * (-slope * v / w2)[:, None, :]]])
+        step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
+        x, v = x - step[:, :n], v - step[:, n:]
+        change = np.max(np.abs(step)) / np.max(size)
+        # Converged, or at the rounding floor (it stops falling).
+        if change <= 1e-14 or change > 0.5 * last:
+            break
+        last = change
+    x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
+    v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
+    spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
+    return spans, x_of, v_of
+
+
+class _Interpolant:
+    """The Chebyshev interpolant of node values on [0, length], callable at times."""
+
+    def __init__(self, coefficients, length):
+        self.coefficients, self.length = coefficients, length
+
+    def __call__(self, time):
+        return np.polynomial.chebyshev.chebval(2 * np.asarray(time) / self.length - 1,
+                                               self.coefficients)
+
+    def derivative(self):
+        return _Interpolant(np.polynomial.chebyshev.chebder(self.coefficients)
+                            * (2 / self.length), self.length)
+
+
+def _interpolant(values, length):
+    return _Interpolant(_SWING_FIT @ values, length)
+
+
+def _reversal(v_of, sense, length):
+    """The first time in (0, length] where the velocity of sign ``sense`` reaches 0
+    (Newton's method on the interpolant inside the bracket of a grid; ``length`` where
+    it does not)."""
+    grid = np.linspace(0.0, length, 33)
+    moving = sense * v_of(grid) > 0
+    moving[0] = True
+    stopped = np.flatnonzero(~moving)
+    if not stopped.size:
+        return length
+    low, high = grid[stopped[0] - 1], grid[stopped[0]]
+    rate = v_of.derivative()
+    time = 0.5 * (low + high)
+    for _ in range(60):
+        value = float(v_of(time))
+        if value == 0.0:
+            break
+        if sense * value > 0:
+            low = time
+        else:
+            high = time
+        then, time = time, time - value / float(rate(time))
+        if not low < time < high:
+            time = 0.5 * (low + high)
+        if abs(time - then) <= 1e-15 * length:
+            break
+    return time
 
 
 def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):

@@ -9,6 +9,11 @@ first turning point with r <= m (static friction equal to the sliding friction).
 mu = 0 this is x = A*exp(-beta*t)*cos(w_d*t + phi), exact at any Q; its turning points follow
 the averaged law dy/dt = -beta*y, and the Coulomb term that of dy/dt = -c with
 c = 2*mu/(pi*w).
+
+:func:`viscous_motion_jacobian` gives the derivatives of x with respect to the five
+parameters in closed form too (piecewise where the mass sticks): every scalar of the
+solution carries its gradient (:class:`_Jet`), and x's partial derivatives with respect to
+those scalars are combined with them once per sample.
 """
 
 from __future__ import annotations
@@ -17,7 +22,10 @@ import math
 
 import numpy as np
 
-__all__ = ["coulomb_force", "viscous_motion"]
+__all__ = ["coulomb_force", "viscous_motion", "viscous_motion_jacobian"]
+
+# The parameters of the derivatives, in the order of viscous_motion's arguments.
+_PARAMETERS = ("y0", "theta0", "omega", "beta", "c")
 
 
 def coulomb_force(c, omega):
@@ -48,51 +56,181 @@ def viscous_motion(tau, y0, theta0, omega, beta, c=0.0):
     ndarray, shape (n,)
         The displacement (U); constant from where the mass sticks.
     """
+    return _motion(tau, y0, theta0, omega, beta, c, False)[0]
+
+
+def viscous_motion_jacobian(tau, y0, theta0, omega, beta, c=0.0):
+    """x(tau) as :func:`viscous_motion` gives it, and its derivatives with respect to
+    (y0, theta0, omega, beta, c) in closed form.
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+        The displacement (U).
+    jacobian : ndarray, shape (5, n)
+        dx/dy0, dx/dtheta0, dx/domega, dx/dbeta, dx/dc. Where the mass sticks (or a
+        half-cycle ends) the derivative is that of the side the times fall on.
+    """
+    return _motion(tau, y0, theta0, omega, beta, c, True)
+
+
+def _motion(tau, y0, theta0, omega, beta, c, derivatives):
     tau = np.asarray(tau, dtype=float)
-    damped = math.sqrt(max(omega * omega - beta * beta, 1e-12 * omega * omega))
-    offset = 0.5 * math.pi * c / omega  # mu / omega**2
-    x0, v0 = y0 * math.cos(theta0), -omega * y0 * math.sin(theta0)
-    if v0 == 0.0 and abs(x0) <= offset:
-        return np.full(tau.shape, x0)
-    sense = math.copysign(1.0, v0) if v0 != 0.0 else -math.copysign(1.0, x0)
-    centre = -sense * offset
-    start, slope = x0 - centre, (v0 + beta * (x0 - centre)) / damped
-    first = (math.atan2(v0, start * damped + beta * slope) % math.pi) or math.pi
+    y0, theta0, omega, beta, c = (_Jet.variable(v, i) for i, v in
+                                  enumerate((y0, theta0, omega, beta, c)))
+    squared = omega * omega - beta * beta
+    damped = (squared.sqrt() if squared.v > 1e-12 * omega.v * omega.v
+              else omega * 1e-6)
+    offset = (0.5 * math.pi) * c / omega  # mu / omega**2
+    x0, v0 = y0 * theta0.cos(), -(omega * y0 * theta0.sin())
+    if v0.v == 0.0 and abs(x0.v) <= offset.v:
+        return np.full(tau.shape, x0.v), _constant(x0, tau, derivatives)
+    sense = math.copysign(1.0, v0.v) if v0.v != 0.0 else -math.copysign(1.0, x0.v)
+    centre = offset * -sense
+    start = x0 - centre
+    slope = (v0 + beta * start) / damped
+    first = _Jet.atan2(v0, start * damped + beta * slope)
+    first = _Jet(first.v % math.pi or math.pi, first.g)
     first_end = first / damped
-    x = centre + np.exp(-beta * tau) * (start * np.cos(damped * tau)
-                                        + slope * np.sin(damped * tau))
-    later = tau > first_end
+    x = np.empty(tau.shape)
+    jacobian = np.empty((len(_PARAMETERS), tau.size)) if derivatives else None
+    later = tau > first_end.v
+    early = ~later
+    now = tau[early]
+    decay = np.exp(-beta.v * now)
+    cos, sin = np.cos(damped.v * now), np.sin(damped.v * now)
+    moved = decay * (start.v * cos + slope.v * sin)
+    x[early] = centre.v + moved
+    if derivatives:
+        # x's partial derivatives in centre, start, slope, beta and w_d, by the chain rule.
+        partials = np.array([np.ones(now.size), decay * cos, decay * sin, -now * moved,
+                             now * decay * (slope.v * cos - start.v * sin)])
+        jacobian[:, early] = _gradients(centre, start, slope, beta, damped) @ partials
     if not np.any(later):
-        return x
-    x1 = centre + math.exp(-beta * first_end) * (start * math.cos(first)
-                                                 + slope * math.sin(first))
+        return x, jacobian
+    x1 = centre + (beta * first_end * -1.0).exp() * (start * first.cos() + slope * first.sin())
     half = math.pi / damped
-    count = int(math.ceil((tau[-1] - first_end) / half)) + 1
-    turning = _turning_points(x1, offset, math.exp(-beta * half), count)
-    k = np.minimum(((tau[later] - first_end) // half).astype(np.int64), turning.size - 1)
-    since = tau[later] - first_end - k * half
-    at = turning[k]
-    centre_k = np.sign(at) * offset
-    moving = np.abs(at) > offset
-    swing = np.exp(-beta * since) * (np.cos(damped * since)
-                                     + beta / damped * np.sin(damped * since))
-    x[later] = np.where(moving, centre_k + (at - centre_k) * swing, at)
-    return x
+    count = int(math.ceil((tau[-1] - first_end.v) / half.v)) + 1
+    points, point_gradients = _turning_points(x1, offset, (beta * half * -1.0).exp(), count)
+    k = np.minimum(((tau[later] - first_end.v) // half.v).astype(np.int64), points.size - 1)
+    since = tau[later] - first_end.v - k * half.v
+    at = points[k]
+    centre_k = np.sign(at) * offset.v
+    moving = np.abs(at) > offset.v
+    swing_decay = np.exp(-beta.v * since)
+    swing_cos, swing_sin = np.cos(damped.v * since), np.sin(damped.v * since)
+    swing = swing_decay * (swing_cos + beta.v / damped.v * swing_sin)
+    swing[~moving] = 1.0  # stuck: x stays at the turning point
+    size = at - centre_k
+    x[later] = centre_k + size * swing
+    if derivatives:
+        # Partial derivatives of the swing in its time, beta and w_d; held samples none.
+        by_time = -swing_decay * swing_sin * (omega.v * omega.v / damped.v) * moving
+        by_beta = (swing_decay * swing_sin / damped.v - since * swing) * moving
+        by_damped = swing_decay * (since * (beta.v / damped.v * swing_cos - swing_sin)
+                                   - beta.v / damped.v**2 * swing_sin) * moving
+        partials = size * np.array([-by_time, -k * by_time, by_beta, by_damped])
+        jacobian[:, later] = (point_gradients[:, k] * swing
+                              + np.outer(offset.g, np.sign(at) * (1 - swing))
+                              + _gradients(first_end, half, beta, damped) @ partials)
+    return x, jacobian
+
+
+def _gradients(*jets):
+    """The gradients of ``jets`` as columns, shape (5, len(jets))."""
+    return np.column_stack([np.broadcast_to(j.g, (len(_PARAMETERS),)) for j in jets])
+
+
+def _constant(value, tau, derivatives):
+    return np.outer(value.g, np.ones(tau.size)) if derivatives else None
 
 
 def _turning_points(x1, offset, ratio, count):
     """The signed turning points from ``x1`` on, each from rest: r' = (r - m)*q - m with
-    alternating signs, held at the first with r <= m (stuck)."""
+    alternating signs, held at the first with r <= m (stuck); and their gradients, shape
+    (5, count)."""
     k = np.arange(count)
-    powers = ratio ** k
-    # (1 - q**k)/(1 - q) without cancellation, k where q == 1.
-    sums = k.astype(float) if ratio == 1.0 else -np.expm1(k * math.log(ratio)) / (1 - ratio)
-    distance = powers * abs(x1) - offset * (1 + ratio) * sums
-    signs = math.copysign(1.0, x1) * (-1.0) ** k
+    q, m = ratio.v, offset.v
+    powers = q ** k
+    # (1 - q**k)/(1 - q) without cancellation, k where q == 1; its derivative in q is
+    # the sum of j*q**(j - 1) for j < k.
+    sums = k.astype(float) if q == 1.0 else -np.expm1(k * math.log(q)) / (1 - q)
+    sums_by_q = np.concatenate([[0.0], np.cumsum(k[:-1] * q ** np.maximum(k[:-1] - 1, 0))])
+    distance = powers * abs(x1.v) - m * (1 + q) * sums
+    by_q = (k * q ** np.maximum(k - 1, 0) * abs(x1.v) - m * sums - m * (1 + q) * sums_by_q)
+    gradient = (np.outer(math.copysign(1.0, x1.v) * x1.g, powers)
+                - np.outer(offset.g, (1 + q) * sums) + np.outer(ratio.g, by_q))
+    signs = math.copysign(1.0, x1.v) * (-1.0) ** k
     points = signs * distance
-    stuck = np.flatnonzero(distance <= offset)
+    gradients = signs * gradient
+    stuck = np.flatnonzero(distance <= m)
     if stuck.size:
         first = stuck[0]
         # A last half-swing that does not cross 0 ends on the side it started.
         points[first:] = points[first]
-    return points
+        gradients[:, first:] = gradients[:, first:first + 1]
+    return points, gradients
+
+
+class _Jet:
+    """A scalar and its gradient with respect to the five parameters (forward-mode
+    differentiation of the few scalars of the solution)."""
+
+    __slots__ = ("v", "g")
+
+    def __init__(self, value, gradient):
+        self.v, self.g = float(value), gradient
+
+    @classmethod
+    def variable(cls, value, index):
+        gradient = np.zeros(len(_PARAMETERS))
+        gradient[index] = 1.0
+        return cls(value, gradient)
+
+    @staticmethod
+    def _of(other):
+        return other if isinstance(other, _Jet) else _Jet(other, 0.0)
+
+    def __add__(self, other):
+        other = self._of(other)
+        return _Jet(self.v + other.v, self.g + other.g)
+
+    def __sub__(self, other):
+        other = self._of(other)
+        return _Jet(self.v - other.v, self.g - other.g)
+
+    def __neg__(self):
+        return _Jet(-self.v, -self.g)
+
+    def __mul__(self, other):
+        other = self._of(other)
+        return _Jet(self.v * other.v, self.g * other.v + other.g * self.v)
+
+    __rmul__ = __mul__
+
+    def __truediv__(self, other):
+        other = self._of(other)
+        value = self.v / other.v
+        return _Jet(value, (self.g - other.g * value) / other.v)
+
+    def __rtruediv__(self, other):
+        return self._of(other) / self
+
+    def sqrt(self):
+        value = math.sqrt(self.v)
+        return _Jet(value, self.g / (2 * value))
+
+    def exp(self):
+        value = math.exp(self.v)
+        return _Jet(value, self.g * value)
+
+    def cos(self):
+        return _Jet(math.cos(self.v), -math.sin(self.v) * self.g)
+
+    def sin(self):
+        return _Jet(math.sin(self.v), math.cos(self.v) * self.g)
+
+    @staticmethod
+    def atan2(y, x):
+        radius = x.v * x.v + y.v * y.v
+        return _Jet(math.atan2(y.v, x.v), (x.v * y.g - y.v * x.g) / radius)

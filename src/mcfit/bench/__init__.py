@@ -14,6 +14,8 @@ formatter that turns it into the printed table:
   a CSV of 10^7 samples and 10^6 cycles (issue 28).
 - :mod:`~mcfit.bench.throughput`: every target of issue 17 (per record, batch, start-up,
   10^7 samples) against its measured figure.
+- :mod:`~mcfit.bench.waveform_speed` (section "waveform"): the default method on a mixed
+  batch against the turning-point method, and the waveform fit's time by Q (issue 28).
 
 The scenes and grids are in :mod:`~mcfit.bench.config`, the records (all generated, none
 read from the source tree) in :mod:`~mcfit.bench.records`, the clocks in

@@ -157,6 +157,10 @@ class BenchConfig:
         Noisy records per scene of the edges section.
     edge_scenes : tuple or None
         The edges section's scenes; None for all of :data:`mcfit.bench.edges.EDGE_SCENES`.
+    mixed_records : int
+        Records of the waveform section's mixed batch (issue 28 names 100).
+    waveform_runs : int
+        Runs of each waveform fit timed in the waveform section (the fastest is kept).
     seed : int
         Seed of every random record.
     integrator_scenes, fit_scenes : tuple
@@ -181,6 +185,8 @@ class BenchConfig:
     method_qs: tuple = (3, 20)
     edge_records: int = 5
     edge_scenes: tuple | None = None
+    mixed_records: int = 20
+    waveform_runs: int = 1
     seed: int = 2026
     integrator_scenes: tuple = INTEGRATOR_SCENES
     fit_scenes: tuple = FIT_SCENES
@@ -193,5 +199,5 @@ FULL = BenchConfig(name="full", steps_per_period=(50, 100, 250, 500, 1000, 2500,
                    batch_records=200, batch_files=200, batch_runs=3, startup_runs=7,
                    big_samples=10_000_000, verdict_records=400,
                    method_records=40, method_qs=(2, 3, 5, 10, 20, 50),
-                   edge_records=60)
+                   edge_records=60, mixed_records=100, waveform_runs=3)
 

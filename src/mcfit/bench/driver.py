@@ -64,6 +64,10 @@ def run(config: BenchConfig = QUICK, sections=SECTIONS, plot_dir=None, progress=
 
         yield format_edges(run_edges(config.edge_records, config.seed,
                                      config.edge_scenes or EDGE_SCENES, progress))
+    if "waveform" in sections:
+        from mcfit.bench.waveform_speed import format_waveform_speed, run_waveform_speed
+
+        yield format_waveform_speed(run_waveform_speed(config, progress))
     if "throughput" in sections:
         from mcfit.bench.throughput import format_throughput, run_throughput
 

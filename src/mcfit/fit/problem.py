@@ -110,6 +110,9 @@ class Problem:
         self.columns = [_COLUMN[k] for k in self.free]
         # The law and its Jacobian at the last two parameter vectors: a solver's answer is
         # often the point before its last trial step, and the callers ask for it again.
+        # Each entry is [amplitude, the law's pieces, Jacobian]: the pieces (six arrays as
+        # long as the record) only until the Jacobian is made from them, and one Jacobian
+        # (the latest asked for) in all: long records need their memory.
         self._cache = {}
 
     def values(self, free_values):
@@ -118,36 +121,45 @@ class Problem:
         values[self.columns] = free_values
         return values
 
-    def _entry(self, free_values):
+    def _key(self, free_values):
+        """(y0, a, b, c) as a tuple of floats."""
         free = (free_values.tolist() if isinstance(free_values, np.ndarray)
                 else [float(v) for v in free_values])
         if len(free) == 4:  # y0, a, b, c in order
-            key = tuple(free)
-        else:
-            values = [0.0, 0.0, 0.0, 0.0]
-            for column, value in zip(self.columns, free):
-                values[column] = value
-            key = tuple(values)
+            return tuple(free)
+        values = [0.0, 0.0, 0.0, 0.0]
+        for column, value in zip(self.columns, free):
+            values[column] = value
+        return tuple(values)
+
+    def _entry(self, free_values):
+        key = self._key(free_values)
         entry = self._cache.get(key)
         if entry is None:
             if len(self._cache) >= 2:
                 del self._cache[next(iter(self._cache))]
-            entry = self._cache[key] = [decay.amplitude_rows(self.t, *key), None]
+            law = decay.amplitude_rows(self.t, *key)
+            entry = self._cache[key] = [law.amplitude(), law, None]
         return entry
 
     def law(self, free_values):
+        """y(t) at the parameters, shape (n,) (computed once per parameter vector)."""
         return self._entry(free_values)[0]
 
     def law_jacobian(self, free_values):
-        """dy/d(y0, a, b, c) as rows, shape (4, n), unweighted (computed once per parameter
-        vector)."""
+        """dy/d(y0, a, b, c) as rows, shape (4, n), unweighted (kept for the latest
+        parameter vector asked for)."""
         entry = self._entry(free_values)
-        if entry[1] is None:
-            entry[1] = entry[0].jacobian()
-        return entry[1]
+        if entry[2] is None:
+            for other in self._cache.values():
+                other[2] = None
+            law = (entry[1] if entry[1] is not None
+                   else decay.amplitude_rows(self.t, *self._key(free_values)))
+            entry[1], entry[2] = None, law.jacobian()
+        return entry[2]
 
     def residual(self, free_values):
-        return (self.law(free_values).amplitude() - self.y) * self.solver_weights
+        return (self.law(free_values) - self.y) * self.solver_weights
 
     def jacobian_rows(self, free_values):
         """The Jacobian of the residuals, transposed: shape (free parameters, n)."""
@@ -157,7 +169,7 @@ class Problem:
         return self.jacobian_rows(free_values).T
 
     def chi_square(self, free_values):
-        return float(np.sum(((self.law(free_values).amplitude() - self.y) * self.weights) ** 2))
+        return float(np.sum(((self.law(free_values) - self.y) * self.weights) ** 2))
 
     def covariance(self, free_values):
         """Unscaled covariance (J^T J)^-1 of the free parameters, record weights (times
@@ -173,6 +185,6 @@ class Problem:
         (free or not): the chi-square gradient, normalized as MINPACK's gtol test does."""
         w = self.solver_weights
         rows = self.law_jacobian(free_values) * w
-        residual = (self.law(free_values).amplitude() - self.y) * w
+        residual = (self.law(free_values) - self.y) * w
         norms = np.sqrt(np.sum(rows**2, axis=1)) * math.sqrt(float(residual @ residual))
         return (rows @ residual) / np.where(norms > 0, norms, 1.0)

@@ -71,6 +71,10 @@ def interval_factor(dof, confidence=0.95):
     return float(special.stdtrit(dof, tail)) if dof > 0 else float(special.ndtri(tail))
 
 
+# Points a block of q_with_stderr.
+_BLOCK = 1 << 16
+
+
 def q_with_stderr(t, values, covariance, free, omega, omega_relative_sigma=0.0):
     """Q at times ``t`` (from t0) and its standard error by the delta method.
 
@@ -78,6 +82,17 @@ def q_with_stderr(t, values, covariance, free, omega, omega_relative_sigma=0.0):
     directly and through y(t); the frequency's relative error adds (Q * sigma_w/w)^2 to the
     variance (it is estimated from the crest times, independently of the amplitudes).
     """
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size <= _BLOCK:
+        return _q_with_stderr(t, values, covariance, free, omega, omega_relative_sigma)
+    # Block by block: the temporaries of a million turning points would be gigabytes.
+    parts = [_q_with_stderr(t[i:i + _BLOCK], values, covariance, free, omega,
+                            omega_relative_sigma) for i in range(0, t.size, _BLOCK)]
+    q = np.concatenate([part[0] for part in parts])
+    return q, None if covariance is None else np.concatenate([part[1] for part in parts])
+
+
+def _q_with_stderr(t, values, covariance, free, omega, omega_relative_sigma):
     y0, a, b, c = (values[k] for k in PARAMETERS)
     law = decay.amplitude_terms(t, y0, a, b, c)
     y = law.amplitude()

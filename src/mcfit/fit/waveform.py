@@ -35,7 +35,7 @@ from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
 from mcfit.fit.reported import lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
 from mcfit.phase_plane import phase_plane_differences
-from mcfit.viscous_motion import coulomb_force, viscous_motion
+from mcfit.viscous_motion import coulomb_force, viscous_motion_jacobian
 
 __all__ = ["FORMS", "WaveformFit", "WaveformStart", "fit_waveform", "fit_candidate"]
 # Nuisance parameters of the waveform besides y0: phase, frequency, offset, drift.
@@ -92,38 +92,42 @@ class _Waveform:
 
     def _with_jacobian(self, p):
         """x at ``p``, and (p, the Jacobian of the residuals) by forward differences of the
-        motion (:meth:`_motion_changes`); offset and drift enter linearly."""
+        motion (:meth:`_motion_jacobian`); offset and drift enter linearly."""
         tau = self.t - self.t0
-        steps = 1e-7 * np.maximum(np.abs(p), self.typical)
         moved = [0, 1, 2] + list(range(5, p.size))
-        motion, changes = self._motion_changes(tau, p, steps, moved)
+        motion, derivatives = self._motion_jacobian(tau, p, moved)
         jacobian = np.empty((self.t.size, p.size))
-        jacobian[:, moved] = changes.T / steps[moved]
+        jacobian[:, moved] = derivatives.T
         jacobian[:, 3] = 1.0
         jacobian[:, 4] = tau
         return motion + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
 
-    def _motion_changes(self, tau, p, steps, moved):
-        """The motion at ``p`` and its changes when each parameter of ``moved`` moves by
-        its step, from one solution (:func:`mcfit.phase_plane.phase_plane_differences`)."""
-        return phase_plane_differences(tau, self._motion(p[None])[0],
-                                       self._motion(np.diag(steps)[moved]), self.memory)
+    def _motion_jacobian(self, tau, p, moved):
+        """The motion at ``p`` and its derivatives in the parameters of ``moved``, shape
+        (len(moved), n): forward differences from one solution
+        (:func:`mcfit.phase_plane.phase_plane_differences`)."""
+        steps = 1e-7 * np.maximum(np.abs(p), self.typical)
+        motion, changes = phase_plane_differences(tau, self._motion(p[None])[0],
+                                                  self._motion(np.diag(steps)[moved]),
+                                                  self.memory)
+        return motion, changes / steps[moved, None]
 
 
 class _VelocityWaveform(_Waveform):
     """As :class:`_Waveform` for the velocity forms: viscous b and sliding friction c, the
-    motion in closed form, each change a solution of its own."""
+    motion and its derivatives in closed form
+    (:func:`mcfit.viscous_motion.viscous_motion_jacobian`)."""
 
-    def _motion_changes(self, tau, p, steps, moved):
-        motion = self._x(tau, p)
-        changes = np.array([self._x(tau, p + steps[i] * np.eye(p.size)[i]) - motion
-                            for i in moved])
-        return motion, changes
-
-    def _x(self, tau, p):
+    def _motion_jacobian(self, tau, p, moved):
         terms = dict(zip(self.terms, p[5:]))
-        beta = min(terms.get("b", 0.0), 0.99 * p[2])
-        return viscous_motion(tau, p[0], p[1], p[2], beta, terms.get("c", 0.0))
+        b, omega = terms.get("b", 0.0), p[2]
+        clipped = b > 0.99 * omega  # beta held below omega
+        x, by = viscous_motion_jacobian(tau, p[0], p[1], omega, min(b, 0.99 * omega),
+                                        terms.get("c", 0.0))
+        rows = {"y0": by[0], "theta0": by[1],
+                "omega": by[2] + 0.99 * by[3] if clipped else by[2],
+                "b": 0.0 * by[3] if clipped else by[3], "c": by[4]}
+        return x, np.array([rows[self.names[i]] for i in moved])
 
 
 
