@@ -107,3 +107,14 @@ def test_times_after_the_start_and_unknown_restoring_forces():
     np.testing.assert_allclose(x, viscous_motion(t, 1.0, 0.0, OMEGA, 0.2), atol=1e-8)
     with pytest.raises(ValueError, match="restoring"):
         motion_with_sensitivities(t, 1.0, 0.0, OMEGA, restoring="cubic")
+
+
+def test_without_friction_the_sensitivity_to_it_is_skipped_only_when_not_wanted():
+    t = np.arange(0.0, 10.0, 0.02)
+    every = motion_with_sensitivities(t, 1.0, 0.2, OMEGA, 0.1, 0.3, restoring="pendulum",
+                                      rtol=1e-11)
+    some = motion_with_sensitivities(t, 1.0, 0.2, OMEGA, 0.1, 0.3, restoring="pendulum",
+                                     rtol=1e-11, wanted=PARAMETERS[:5])
+    np.testing.assert_allclose(some[0], every[0], atol=1e-8)
+    np.testing.assert_allclose(some[1][:, :5], every[1][:, :5], atol=1e-6)
+    assert np.all(np.isnan(some[1][:, 5])) and np.all(np.isfinite(every[1]))
