@@ -118,3 +118,11 @@ def test_without_friction_the_sensitivity_to_it_is_skipped_only_when_not_wanted(
     np.testing.assert_allclose(some[0], every[0], atol=1e-8)
     np.testing.assert_allclose(some[1][:, :5], every[1][:, :5], atol=1e-6)
     assert np.all(np.isnan(some[1][:, 5])) and np.all(np.isfinite(every[1]))
+
+
+def test_a_motion_the_integrator_cannot_follow_is_nan_not_a_warning():
+    """A solver's trial step may make the motion run away (here negative damping): NaN from
+    where the integration fails, which the fit steps back from, and no ODEintWarning."""
+    t = np.linspace(0.0, 10.0, 101)
+    x, sensitivities = motion_with_sensitivities(t, 1.0, 0.0, OMEGA, -50.0)
+    assert x[0] == 1.0 and np.isnan(x[-1]) and np.isnan(sensitivities[-1]).all()

@@ -95,15 +95,15 @@ def test_a_large_swing_with_pendulum_is_fitted_by_its_equation_of_motion(large_s
 
 @pytest.mark.slow
 def test_b_covers_over_seeds_at_a_large_swing(large_swing):
-    """Noise 1e-5 rad, 12 seeds: b's 95 % interval covers the viscous rate in at least 9
+    """Noise 1e-5 rad, 10 seeds: b's 95 % interval covers the viscous rate in at least 8
     (the averaged law covered none)."""
     _, (t, x) = large_swing
     covered = 0
-    for seed in range(100, 112):
+    for seed in range(100, 110):
         fit = analyse_record(_noisy(t, x, 1e-5, seed), pendulum=True).fit
         covered += fit.model == "b" and abs(fit.values["b"] - BETA) < (
             fit.interval_factor * fit.stderr["b"])
-    assert covered >= 9
+    assert covered >= 8
 
 
 def test_a_swing_in_degrees_is_fitted_in_degrees():

@@ -15,9 +15,10 @@ of the switching surface x' = 0). The mass sticks at a reversal where |R(x)| <= 
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
-from scipy.integrate import odeint
+from scipy.integrate import ODEintWarning, odeint
 
 __all__ = ["PARAMETERS", "RESTORING", "motion_with_sensitivities"]
 
@@ -134,7 +135,7 @@ def _smooth(tau, state, parameters, tolerances):
     sensitivity to mu, forced by the sense of motion, is not found)."""
     start = tau[0] > 0
     times = np.concatenate([[0.0], tau]) if start else tau
-    rows = odeint(_rates(parameters, 1.0), state, times, **tolerances)
+    rows = _integrated(_rates(parameters, 1.0), state, times, tolerances)
     return rows[1:] if start else rows
 
 
@@ -157,7 +158,7 @@ def _by_half_cycles(tau, state, parameters, tolerances):
         offset = int(tau[filled] > now)
         times = np.concatenate([[now][:offset], tau[filled:inside], [end][:int(end > tau[
             inside - 1])]])
-        path = odeint(rates, state, times, **tolerances)
+        path = _integrated(rates, state, times, tolerances)
         crossed = np.flatnonzero(sense * path[1:, 1] < 0)
         if crossed.size == 0:  # no reversal yet: go on from the end
             rows[filled:inside] = path[offset:offset + inside - filled]
@@ -176,6 +177,18 @@ def _by_half_cycles(tau, state, parameters, tolerances):
     return rows
 
 
+def _integrated(rates, state, times, tolerances):
+    """odeint's rows at ``times``; NaN from where it failed (a solver's trial parameters
+    may make the motion run away: the caller's solver steps back from NaN)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ODEintWarning)
+        rows, info = odeint(rates, state, times, full_output=True, **tolerances)
+    if info["message"] != "Integration successful.":
+        failed = np.flatnonzero(info["tcur"] < np.asarray(times)[1:] * (1 - 1e-12)) + 1
+        rows[failed[0] if failed.size else 0:] = np.nan
+    return rows
+
+
 def _reversal(rates, t_a, y_a, t_b, y_b, sense, tolerances):
     """The time and state where the velocity of ``sense`` vanishes in (t_a, t_b], the
     states there ``y_a`` and ``y_b``: Newton's method on v(t) integrated from t_a (v' is
@@ -183,7 +196,8 @@ def _reversal(rates, t_a, y_a, t_b, y_b, sense, tolerances):
     low, high, when = t_a, t_b, t_b
 
     def state_at(time):
-        return odeint(rates, y_a, [t_a, time], **tolerances)[-1] if time > t_a else y_a.copy()
+        return (_integrated(rates, y_a, [t_a, time], tolerances)[-1] if time > t_a
+                else y_a.copy())
 
     state = y_b
     for step in range(_NEWTON_STEPS):

@@ -14,13 +14,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
 from mcfit.equation_of_motion import motion_with_sensitivities
 from mcfit.fit.waveform import _Waveform
 
-__all__ = ["EquationOfMotionWaveform", "PendulumWaveform", "fit_pendulum_waveform"]
+__all__ = ["EquationOfMotionWaveform", "PendulumWaveform", "fit_pendulum_waveform",
+           "pendulum_law_bias"]
 
 # The integration's relative tolerance: this share of the noise over the amplitude (the
 # error at the end of a long record is a few times the tolerance), within these limits.
@@ -81,7 +83,8 @@ def fit_pendulum_waveform(record, turning, fit, degrees=False, *, criterion="aic
     by the pendulum's equation of motion where the averaged law would be biased by more
     than a standard error (:func:`pendulum_law_bias`) or misfits. The result says which
     and why (``method_reason``); a misfit is never silent."""
-    from mcfit.analysis import _misfit_warning, _unresolved, describes_waveform  # noqa: PLC0415
+    from mcfit.analysis import (_misfit_warning, _unresolved,  # noqa: PLC0415 (cycle)
+                                _without_steady_line, describes_waveform)
     from mcfit.fit.decay_fit import misfit_warning  # noqa: PLC0415
     from mcfit.fit.waveform import fit_waveform  # noqa: PLC0415
 
@@ -89,14 +92,19 @@ def fit_pendulum_waveform(record, turning, fit, degrees=False, *, criterion="aic
             or not fit.selection.terms):
         return fit
     dof = fit.n_points - 1 - len(fit.selection.terms)
-    misfits = bool(misfit_warning(fit.reduced_chi_square, dof))
-    bias = pendulum_law_bias(record.t, turning, fit, degrees)
-    said = f"the averaged large-swing law's bias is predicted at {bias:.2g} standard errors"
+    misfits = not fit.noise_from_residuals and bool(misfit_warning(fit.reduced_chi_square,
+                                                                    dof))
+    # A misfit asks for the waveform fit whatever the bias: the chain is not run.
+    bias = math.nan if misfits else pendulum_law_bias(record.t, turning, fit, degrees)
+    said = (f"the averaged large-swing law misfits (reduced chi-square "
+            f"{fit.reduced_chi_square:.3g})" if misfits else
+            f"the averaged large-swing law's bias is predicted at {bias:.2g} standard errors")
     if not misfits and bias <= 1.0:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
-    kind = _pendulum_kind(math.pi / 180.0 if degrees else 1.0)
-    waveform = fit_waveform(record.t, record.x, turning, fit, criterion=criterion,
-                            forced=model, form="velocity", kind=kind)
+    kind = partial(PendulumWaveform, radians_per_unit=math.pi / 180.0 if degrees else 1.0)
+    x = _without_steady_line(record.t, record.x, turning.steady_line)
+    waveform = fit_waveform(record.t, x, turning, fit, criterion=criterion, forced=model,
+                            form="velocity", kind=kind)
     if describes_waveform(waveform):
         return replace(waveform, method_reason=f"{said}: fitted by the pendulum's equation "
                        "of motion")
@@ -109,12 +117,6 @@ def fit_pendulum_waveform(record, turning, fit, degrees=False, *, criterion="aic
     return _unresolved(replace(waveform, method_reason=f"{said}: fitted by the pendulum's "
                                "equation of motion, which misfits as the averaged law does",
                                warnings=waveform.warnings + (warning,)))
-
-
-def _pendulum_kind(radians_per_unit):
-    def kind(t, x, t0, terms, noise):
-        return PendulumWaveform(t, x, t0, terms, noise, radians_per_unit)
-    return kind
 
 
 def pendulum_law_bias(t, turning, fit, degrees=False):
