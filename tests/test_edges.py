@@ -98,17 +98,19 @@ def test_the_tie_needs_the_evidence_of_a_term_test():
     assert TIE_DELTA == pytest.approx(stats.chi2.isf(LRT_ALPHA, 1), abs=0.01)
 
 
-def test_drag_is_not_called_an_amplitude_form():
+def test_drag_is_fitted_in_its_velocity_form():
     """Viscous damping with quadratic drag kappa*x'|x'| (Q about 3, noise 5e-3): the
-    velocity form of drag is not fitted, so the amplitude forms win by default; the form
-    is "cannot tell", not "amplitude"."""
+    velocity forms fit it (it was "cannot tell" while quadratic drag had no velocity
+    form), with beta and kappa within 3 standard errors."""
     from mcfit.bench.reference_motion import integrate
 
     omega = 2 * math.pi
     t, x = integrate(lambda _, v, __: 2.0 * v + 1.2 * v * abs(v), omega, 1.0, 6.0, 100.0)
     fit = analyse_record(_noisy(t, x, 5e-3, 0)).fit
-    assert "a" in fit.model and fit.damping_form == "cannot tell"
-    assert "quadratic drag" in fit.damping_form_reason
+    assert fit.model == "ab" and fit.damping_form == "velocity", fit.damping_form_reason
+    for name, truth in {"beta": 1.0, "kappa": 1.2}.items():
+        force = fit.physical[name]
+        assert abs(force["value"] - truth) < 3 * force["stderr"], name
 
 
 def test_a_forced_waveform_fit_that_misfits_says_so():

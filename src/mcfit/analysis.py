@@ -10,6 +10,7 @@ import numpy as np
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.diagnostics import misfit_warning
+from mcfit.fit.eom_waveform import fit_pendulum_waveform
 from mcfit.fit.models import TERMS, terms_of
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
                                 names_degrees)
@@ -374,14 +375,11 @@ def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     best, other = sorted(scores, key=scores.get)
     gap = scores[other] - scores[best]
     names = {"amplitude": "Eq. 20.55's amplitude forms", "velocity": "the velocity forms "
-             "(viscous, sliding friction)"}
-    kept = set(terms_of(fits[best].model))
-    if (best == "amplitude" and "a" in kept) or kept <= {"c"}:
-        why = ("a fluid term is kept, whose velocity form (quadratic drag) is not fitted"
-               if "a" in kept else "sliding friction has one form only")
+             "(viscous, quadratic drag, sliding friction)"}
+    if set(terms_of(fits[best].model)) <= {"c"}:
         return replace(fits[best], damping_form="cannot tell", damping_form_reason=(
-            f"{names[best]} fit the waveform best, but {why}: the coefficients are those of "
-            f"{names[best]}"))
+            f"{names[best]} fit the waveform best, but sliding friction has one form only: "
+            f"the coefficients are those of {names[best]}"))
     if gap <= FORM_TIE:
         return replace(fits[best], damping_form="cannot tell", damping_form_reason=(
             f"{names[best]} and {names[other]} fit the waveform equally well (AICc "
@@ -527,6 +525,9 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
             if getattr(chosen, "method", None) != getattr(fit, "method", None):
                 chosen = with_large_swing_warning(chosen, turning, degrees)
             fit = chosen
+        else:
+            fit = fit_pendulum_waveform(record, turning, fit, degrees, criterion=criterion,
+                                        model=model)
         if turning.warnings and fit.model != "power":
             fit = _unresolved(fit)  # a beat or disturbance was left out: no confident verdict
     except McfitError as error:

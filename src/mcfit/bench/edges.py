@@ -1,6 +1,6 @@
 """The edges section of ``mcfit bench``: scenes where real records live (low Q with
-friction, viscous damping, held releases, large swings, near ties, beats, coarse
-quantisation), each record analysed with default options and counted as right, flagged
+friction, viscous damping, quadratic drag, held releases, large swings, near ties,
+beats, coarse quantisation), each record analysed with default options and counted as right, flagged
 or silently wrong.
 
 Every record comes from :mod:`mcfit.bench.reference_motion`, an integration that shares
@@ -119,6 +119,9 @@ EDGE_SCENES = (
     EdgeScene("pendulum Q = 50, 1.4 rad, --pendulum",
               lambda: motion.pendulum(math.pi / 50, W1, 1.4, 60.0, 50.0),
               1e-5, {"b": math.pi / 50}, pendulum=True),
+    EdgeScene("quadratic drag alone, Q = 5",
+              lambda: motion.quadratic_drag(3 * math.pi / 40, W1, 1.0, 8.0, 100.0),
+              1e-3, {"a": W1 / 10}, "velocity"),
     EdgeScene("viscous, 10 % over 10 cycles (tie)",
               lambda: motion.viscous(TIE_BETA, W1, 1.0, 10.0, 100.0),
               5e-3, {"b": TIE_BETA}, "velocity", kind="tie"),

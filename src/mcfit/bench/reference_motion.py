@@ -71,7 +71,15 @@ def hysteretic(a, b, c, omega, y0, t_end, rate):
     return integrate(force, omega, y0, t_end, rate, mu=0.5 * math.pi * omega * c)
 
 
-def pendulum(beta, omega, theta0, t_end, rate):
-    """theta'' + 2*beta*theta' + omega**2*sin(theta) = 0, released from rest at theta0."""
-    return integrate(lambda x, v, _: 2 * beta * v, omega, theta0, t_end, rate,
-                     restoring=lambda x: omega * omega * math.sin(x))
+def quadratic_drag(kappa, omega, y0, t_end, rate, *, beta=0.0, mu=0.0):
+    """Quadratic drag kappa*x'*|x'| (with viscous 2*beta*x' and Coulomb mu), released from
+    rest at y0."""
+    return integrate(lambda x, v, _: 2 * beta * v + kappa * v * abs(v), omega, y0, t_end,
+                     rate, mu=mu)
+
+
+def pendulum(beta, omega, theta0, t_end, rate, *, kappa=0.0):
+    """theta'' + 2*beta*theta' + kappa*theta'*|theta'| + omega**2*sin(theta) = 0, released
+    from rest at theta0."""
+    return integrate(lambda x, v, _: 2 * beta * v + kappa * v * abs(v), omega, theta0, t_end,
+                     rate, restoring=lambda x: omega * omega * math.sin(x))

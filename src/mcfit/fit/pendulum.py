@@ -256,16 +256,21 @@ class PendulumFit(DecayFit):
     def to_dict(self) -> dict:
         """:meth:`DecayFit.to_dict` with the pendulum's angle unit and small-angle period
         T0 in s (``pendulum``)."""
-        from mcfit import plain
+        return with_pendulum_entry(super().to_dict(), self)
 
-        out = super().to_dict()
-        warnings = out.pop("warnings")  # kept last
-        out["pendulum"] = {
-            "angle_unit": self.angle_unit,
-            "small_angle_period": plain.number(self.small_angle_period),
-            "small_angle_period_stderr": plain.number(self.small_angle_period_stderr)}
-        out["warnings"] = warnings
-        return out
+
+def with_pendulum_entry(out, fit) -> dict:
+    """A fit's dict with the ``pendulum`` entry (angle unit, small-angle period T0 in s)
+    before its warnings."""
+    from mcfit import plain
+
+    warnings = out.pop("warnings")  # kept last
+    out["pendulum"] = {
+        "angle_unit": fit.angle_unit,
+        "small_angle_period": plain.number(fit.small_angle_period),
+        "small_angle_period_stderr": plain.number(fit.small_angle_period_stderr)}
+    out["warnings"] = warnings
+    return out
 
 
 def fit_pendulum(t, y, sigma=None, *, period=None, period_sigma=None, signs=None,

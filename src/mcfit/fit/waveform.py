@@ -11,9 +11,10 @@ with :func:`mcfit.fit.selection.select_model` as the turning-point fit does.
 
 Each term has two physical forms with the same averaged law (THEORY.md section 9):
 Eq. 20.55's amplitude forms (``form="amplitude"``) and the velocity forms, viscous
-2*beta*x' for b and sliding friction mu*sgn(x') for c (``form="velocity"``, exact in
-closed form by :func:`mcfit.viscous_motion.viscous_motion`; quadratic drag for a has none
-and is not offered). At low Q they differ at order 1/Q; :data:`FORMS` lists them.
+2*beta*x' for b, quadratic drag kappa*x'*|x'| for a and sliding friction mu*sgn(x') for c
+(``form="velocity"``, in closed form by :func:`mcfit.viscous_motion.viscous_motion`
+without drag, integrated by :mod:`mcfit.fit.eom_waveform` with it). At low Q they differ
+at order 1/Q; :data:`FORMS` lists them.
 """
 
 from __future__ import annotations
@@ -181,14 +182,22 @@ class WaveformStart:
                    fit.t, fit.y, fit.sigma)
 
 
+def _velocity_waveform(t, x, t0, terms, noise):
+    """The velocity forms: in closed form without quadratic drag, integrated with it."""
+    if "a" not in terms:
+        return _VelocityWaveform(t, x, t0, terms, noise)
+    from mcfit.fit.eom_waveform import EquationOfMotionWaveform  # noqa: PLC0415 (cycle)
+
+    return EquationOfMotionWaveform(t, x, t0, terms, noise)
+
+
 # The physical forms of the damping terms: the waveform model of each and the candidate
-# models it offers (the velocity forms have no fluid term).
-FORMS = {"amplitude": (_Waveform, MODELS),
-         "velocity": (_VelocityWaveform, tuple(m for m in MODELS if "a" not in m))}
+# models it offers.
+FORMS = {"amplitude": (_Waveform, MODELS), "velocity": (_velocity_waveform, MODELS)}
 
 
 def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
-                 forced=None, form="amplitude"):
+                 forced=None, form="amplitude", kind=None):
     """Fit the samples between the first and the last used turning point by the equation
     of motion with the damping in ``form`` (a key of :data:`FORMS`).
 
@@ -203,6 +212,8 @@ def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
     criterion, alpha, forced
         As for :func:`mcfit.fit.fit_decay`; a ``forced`` model the form does not offer
         raises :class:`mcfit.errors.FitError`.
+    kind : callable, optional
+        The waveform model in place of the form's (a pendulum's equation of motion).
 
     Returns
     -------
@@ -210,7 +221,7 @@ def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
         With ``damping_form == form``; values, errors and Q from the waveform fit,
         ``physical`` the coefficients of the forces.
     """
-    kind, offered = FORMS[form]
+    kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
     tw, xw, t0, nuisance = _window(t, x, turning, start.omega)
@@ -423,7 +434,9 @@ _FORCES = {
     "amplitude": {"a": ("a", "(pi*w/2)*a*A**2*sgn(x')", lambda v, w: v, "1/(U*s)"),
                   "b": ("b", "(pi*w/2)*b*A*sgn(x')", lambda v, w: v, "1/s"),
                   "c": ("mu", "mu*sgn(x')", coulomb_force, "U/s**2")},
-    "velocity": {"b": ("beta", "2*beta*x'", lambda v, w: v, "1/s"),
+    "velocity": {"a": ("kappa", "kappa*x'*abs(x')", lambda v, w: 0.75 * math.pi * v / w,
+                       "1/U"),
+                 "b": ("beta", "2*beta*x'", lambda v, w: v, "1/s"),
                  "c": ("mu", "mu*sgn(x')", coulomb_force, "U/s**2")},
 }
 
