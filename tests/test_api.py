@@ -218,7 +218,7 @@ def test_fit_results_have_a_short_repr(fig_20_19):
                          f"{fit.reduced_chi_square:.3g}>")
     path = str(SAMPLES / "capstone_runs.csv")
     waveform = mcfit.analyse_file(path, run=4, method="waveform").fit
-    assert repr(waveform).startswith("<DecayFit bc by waveform:")
+    assert repr(waveform).startswith("<WaveformFit bc by waveform:")
     assert f"{waveform.n_points} samples" in repr(waveform)
     power = mcfit.analyse_file(str(SAMPLES / "fig20_19_all_three.csv"), model="power").fit
     assert repr(power).startswith("<PowerLawFit power by turning points: y0 = ")
