@@ -177,7 +177,7 @@ def test_closing_the_batch_cancels_the_tasks_left(cluster, records, monkeypatch)
     options = batch.FitOptions(output_format="json", method="turning-points")
     results = dask_jobs.run_jobs(paths, options, [None] * len(paths),
                                  cluster.scheduler_address)
-    assert next(iter(results)).records[0].source == paths[0]
+    assert next(iter(results)).records[0]["analysis"]["source"] == paths[0]
     results.close()
     deadline = time.monotonic() + 10
     while cluster.scheduler.tasks and time.monotonic() < deadline:

@@ -158,3 +158,25 @@ def test_runs_are_summarised_from_their_data():
     mean = (runs[0]["params"]["b"]["value"] + runs[1]["params"]["b"]["value"]) / 2
     assert text.startswith("runs of two.csv: 2 of 2 fitted; models b in 2;")
     assert f"  b          {mean:.6g} +- " in text
+
+
+def test_analyse_files_gives_the_frame_of_the_command_lines_csv(tmp_path):
+    import csv
+    import io
+    from pathlib import Path
+
+    import pandas as pd
+    from click.testing import CliRunner
+
+    from mcfit.cli import cli
+
+    samples = Path(__file__).parents[1] / "sample_data"
+    paths = [str(samples / "capstone_runs.csv"), str(samples / "coulomb_stop.csv"),
+             str(tmp_path / "missing.csv")]
+    printed = CliRunner().invoke(cli, [*paths, "--format", "csv", "--method",
+                                       "turning-points"]).stdout
+    expected = pd.read_csv(io.StringIO(printed), quoting=csv.QUOTE_MINIMAL,
+                           keep_default_na=False, na_values=[""])
+    table = mcfit.analyse_files(paths, method="turning-points")
+    pd.testing.assert_frame_equal(table, expected)
+    assert table["resolved"].tolist()[:6] == [True] * 6 and table["turning_points"].iloc[6] == 0

@@ -105,13 +105,9 @@ class Analysis:
     def turning_points(self):
         """The turning points as a pandas DataFrame: t, amplitude, sigma, used, why not
         (``excluded_reason``) and the fitted envelope, as the command line writes them."""
-        import pandas as pd
+        from mcfit.frames import turning_points_frame
 
-        from mcfit.report import TURNING_POINT_COLUMNS
-
-        table = pd.DataFrame(self.turning_point_table(), columns=TURNING_POINT_COLUMNS)
-        return table.drop(columns="source").astype({"amplitude": float, "sigma": float,
-                                                    "envelope": float})
+        return turning_points_frame(self.turning_point_table())
 
     def figure(self, title=None, *, panels=None, figsize=None, unit=None):
         """The report figure (a matplotlib Figure; nothing is shown or saved).

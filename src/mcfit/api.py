@@ -105,6 +105,7 @@ def analyse_files(paths, *, jobs=1, **options):
     a pandas DataFrame with the command line's CSV columns, one row per record, in input
     order; ``jobs`` worker processes."""
     from mcfit import batch, report
+    from mcfit.frames import results_frame
 
     chosen = _taken(options, READ_OPTIONS + FIT_OPTIONS)
     _nothing_else(options, READ_OPTIONS + FIT_OPTIONS)
@@ -119,33 +120,7 @@ def analyse_files(paths, *, jobs=1, **options):
             for file_result in batch.run_jobs(sources, fit_options, [None] * len(sources),
                                               jobs=jobs)
             for result in file_result.records]
-    return _frame(rows, report.csv_columns(bootstrap))
-
-
-def _frame(rows, columns):
-    """A DataFrame of ``rows`` (dicts of plain values, None for missing) with the types a
-    CSV reader gives them: numbers as float or int, NaN for missing."""
-    import pandas as pd
-
-    frame = pd.DataFrame.from_records(rows, columns=list(columns))
-    return frame.apply(_typed_column)
-
-
-def _typed_column(column):
-    import pandas as pd
-
-    values = column.dropna()
-    if values.empty:
-        return column.astype(float)
-    if all(isinstance(v, bool) for v in values):
-        return column.astype(bool) if len(values) == len(column) else _nan_for_none(column)
-    if all(isinstance(v, (int, float)) for v in values):
-        return pd.to_numeric(column)
-    return _nan_for_none(column)
-
-
-def _nan_for_none(column):
-    return column.where(column.notna(), float("nan"))
+    return results_frame(rows, report.csv_columns(bootstrap))
 
 
 def turning_points_frame(analysis: Analysis):
