@@ -87,6 +87,9 @@ def test_a_large_swing_with_pendulum_is_fitted_by_its_equation_of_motion(large_s
             assert 0.8 < fit.reduced_chi_square < 1.25
             assert fit.physical["beta"]["value"] == fit.values["b"]
             assert "pendulum's equation of motion" in fit.method_reason
+            # Q is the energy's: below w0/(2*beta) = 50 at large swings, tending to it.
+            q = fit.q_summary
+            assert q["initial"] < 49.5 and q["initial"] < q["final"] < 50.01
         else:
             assert "turning-point fit suffices" in fit.method_reason
     if noise == 1e-5:

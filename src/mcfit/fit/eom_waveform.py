@@ -135,6 +135,9 @@ def fit_pendulum_waveform(record, turning, fit, degrees=False, *, criterion="aic
     waveform = PendulumWaveformFit.of(fit_waveform(
         record.t, x, turning, WaveformStart.of_fit(fit), criterion=criterion, forced=model,
         form="velocity", kind=kind), fit)
+    waveform = _with_pendulum_q(replace(waveform, damping_form_reason=(
+        "the pendulum's equation of motion, with the velocity forms of the damping (viscous, "
+        "quadratic drag, sliding friction)")))
     if describes_waveform(waveform):
         return replace(waveform, method_reason=f"{said}: fitted by the pendulum's equation "
                        "of motion")
@@ -147,6 +150,24 @@ def fit_pendulum_waveform(record, turning, fit, degrees=False, *, criterion="aic
     return _unresolved(replace(waveform, method_reason=f"{said}: fitted by the pendulum's "
                                "equation of motion, which misfits as the averaged law does",
                                warnings=waveform.warnings + (warning,)))
+
+
+def _with_pendulum_q(fit):
+    """``fit`` with its amplitudes by the pendulum's law and Q(t) the energy's (THEORY.md
+    section 8), as the pendulum's law reports them; Q's relative errors are those of the
+    small-angle Q it replaces (both scale as 1/rate)."""
+    from mcfit.fit.pendulum import _q_of  # noqa: PLC0415
+    from mcfit.fit.uncertainty import summarise_q  # noqa: PLC0415
+
+    if fit.q is None:
+        return fit
+    y_fit = fit.amplitude(fit.t)
+    s, v = fit.radians_per_unit, fit.values
+    q, parts = _q_of(y_fit * s, np.array([v["c"] * s, v["b"], v["a"] / s]),
+                     2 * math.pi / fit.omega)
+    q_stderr = None if fit.q_stderr is None else q * fit.q_stderr / fit.q
+    return replace(fit, y_fit=y_fit, q=q, q_stderr=q_stderr, q_summary=summarise_q(q, q_stderr),
+                   q_parts={"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]})
 
 
 def pendulum_law_bias(t, turning, fit, degrees=False):
