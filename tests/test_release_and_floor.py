@@ -204,6 +204,26 @@ def test_a_rise_at_the_start_starts_the_free_decay():
     assert any(note.startswith("the free decay starts at t = 6,") for note in points.notes)
 
 
+def test_one_function_decides_whether_a_rise_starts_the_free_decay():
+    """release._release_at_rise, which the table and waveform paths both ask: a rise to
+    the largest amplitude early on starts the decay; a rise in the middle, or to the
+    largest amplitude late in the record, does not."""
+    from mcfit.turning.release import _release_at_rise, _rise
+
+    n = np.arange(40.0)
+    for y, starts in ((np.concatenate([[1.0, 0.5, 0.45, 0.6, 0.8, 1.2],
+                                       1.5 * np.exp(-0.05 * n)]), 6.0),
+                      (np.concatenate([np.exp(-0.05 * n[:20]), [0.6, 0.7, 0.8],
+                                       0.7 * np.exp(-0.05 * n)]), None),
+                      (np.concatenate([np.exp(-0.05 * n[:30]), 1.5 * np.exp(-0.05 * n[:10])]),
+                       None)):
+        sigma = np.full(y.size, 0.01)
+        k = _rise(y, 0.01, sigma, 0.0)
+        assert k is not None
+        found = _release_at_rise(np.arange(y.size, dtype=float), y, k, 0.01, sigma, 0.0)
+        assert (found and found[0]) == starts
+
+
 def test_a_rise_in_the_middle_is_left_out_with_a_warning():
     n = np.arange(40.0)
     y = np.concatenate([np.exp(-0.05 * n[:20]), [0.6, 0.7, 0.8], 0.7 * np.exp(-0.05 * n)])

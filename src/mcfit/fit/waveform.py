@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import optimize
+from scipy import fft, optimize
 from scipy.stats import median_abs_deviation  # lmfit imports scipy.stats anyway
 
 from mcfit import decay
@@ -311,13 +311,35 @@ def _window(t, x, turning, omega):
 
 
 def sample_noise(x):
-    """The standard deviation of white noise on a smooth signal, from the robust scale of
-    its sixth differences (a sine sampled 20 times a cycle passes 1e-3 of its amplitude;
-    the noise 924**0.5 times its own). Residuals in these units make chi-square about one
-    per sample."""
-    sixth = np.diff(x, 6)
-    scale = float(median_abs_deviation(sixth, scale="normal")) / math.sqrt(924.0)
+    """The standard deviation of white noise on a smooth oscillation, from the robust scale
+    of its k-th differences, k chosen by :func:`_noise_difference_order` (6 from 20 samples
+    a cycle: a sine passes 1e-3 of its amplitude, the noise 924**0.5 times its own; sixth
+    differences at 8 samples a cycle passed 0.2 of a sine and read a noise of 1e-3 as
+    3e-3). Residuals in these units make chi-square about one per sample."""
+    order = _noise_difference_order(x)
+    differences = np.diff(x, order)
+    gain = math.sqrt(math.comb(2 * order, order))  # white noise's, sum of C(k, j)**2
+    scale = (float(median_abs_deviation(differences, scale="normal")) / gain
+             if differences.size else 0.0)
     return scale if scale > 0 else float(np.std(x)) or 1.0
+
+
+# A sine leaks through the noise's differences, against white noise, as much as through
+# sixth differences at 20 samples a cycle, or less.
+_NOISE_LEAK = (2 * math.sin(math.pi / 20)) ** 6 / math.sqrt(924.0)
+
+
+def _noise_difference_order(x):
+    """The least difference order k >= 6 (40 and a quarter of the samples at most) at
+    which a sine at the spectrum's peak, N samples a cycle, passes (2*sin(pi/N))**k of
+    its amplitude, within _NOISE_LEAK of white noise's sqrt(C(2k, k))."""
+    size = fft.next_fast_len(x.size, real=True)
+    power = np.abs(fft.rfft(x - np.mean(x), size))
+    peak = 1 + int(np.argmax(power[1:])) if power.size > 1 else 0
+    step = 2 * math.sin(math.pi * min(peak / size, 0.5))
+    most = max(6, min(40, x.size // 4))
+    return next((k for k in range(6, most)
+                 if step**k <= _NOISE_LEAK * math.sqrt(math.comb(2 * k, k))), most)
 
 
 def _bounds(start, terms):

@@ -6,6 +6,7 @@ import numpy as np
 
 from mcfit.errors import RecordError, TooFewTurningPoints
 from mcfit.turning.common import SAMPLES_PER_CYCLE, _median, _robust_sigma, _running_median
+from mcfit.turning.release import _release_at_rise, _rise
 from mcfit.turning.result import MIN_TURNING_POINTS
 
 # Larger times or signal values overflow float64 once squared and summed.
@@ -162,10 +163,11 @@ def _rests(y, crests=4):
 def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
     """(release time or NaN, notes, warnings): where the smoothed amplitudes rise again
     after a fall, the part the decay does not need is left out in ``reasons`` (changed in
-    place) instead of refusing the record. A rise to the largest amplitude early on, with
-    the decay undisturbed after it, starts the free decay ("before release"); any other
-    rise ends it where the amplitude first reaches its dip ("after the decay"). Raises
-    :class:`RecordError` only for an oscillation that grows as a whole."""
+    place) instead of refusing the record. A rise that starts the free decay (as
+    :func:`mcfit.turning.release._release_at_rise` decides) leaves out the crests before
+    it ("before release"); any other rise ends the decay where the amplitude first reaches
+    its dip ("after the decay"). Raises :class:`RecordError` only for an oscillation that
+    grows as a whole."""
     release, notes, ending, beat = float("nan"), [], None, False
     index = np.flatnonzero(reasons == "")
     _check_growth(centres, y, sigma_y, index, source)
@@ -176,14 +178,11 @@ def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
         if k is None:
             break
         dip = int(np.argmin(smooth[:k + 1]))
-        if (smooth[k] >= smooth[0] and 2 * k < smooth.size
-                and _rise(smooth[k:], noise, sigma_y[index[k:]], floor) is None):
+        started = _release_at_rise(centres[index], smooth, k, noise, sigma_y[index], floor)
+        if started is not None:
             reasons[index[:k]] = "before release"
-            release = float(centres[index[k]])
-            notes.append(f"the free decay starts at t = {release:.6g}, where the amplitude "
-                         f"rises to its largest ({smooth[k]:.3g}) after falling to "
-                         f"{smooth[dip]:.3g}: held, driven or disturbed before it; {k} "
-                         "turning points before it left out")
+            release, note = started
+            notes.append(note)
         else:
             end = _end_of_decay(smooth, dip, noise, sigma_y[index])
             low = f"{smooth[end]:.3g} at t = {centres[index[end]]:.6g}"
@@ -233,17 +232,3 @@ def _end_of_decay(smooth, dip, noise, sigma):
     level: where the decay reaches the level it rises from."""
     level = smooth[dip] + 2 * np.maximum(noise, sigma[:dip + 1])
     return int(np.flatnonzero(smooth[:dip + 1] <= level)[0])
-
-
-def _rise(smooth, noise, sigma, floor):
-    """Index of the largest clear rise of the smoothed amplitudes after a fall, or None."""
-    running_min = np.minimum.accumulate(smooth)
-    rise = smooth - running_min
-    # Crests in the noise can be <= 0: a rise from there is judged against the noise.
-    k = int(np.argmax(rise / np.maximum(running_min, max(noise, 1e-300))))
-    # Near the ends the median is the crest itself, often an edge-cut window: judge the
-    # rise against that crest's own uncertainty when it is the larger.
-    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * max(noise, sigma[k])
-            and running_min[k] < smooth[0] and smooth[k] > 3 * floor):
-        return k
-    return None

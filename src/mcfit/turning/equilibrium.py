@@ -5,11 +5,18 @@ from __future__ import annotations
 import numpy as np
 
 from mcfit.turning.common import _BLOCK_SAMPLES, _CREST_BLOCK, _median, _segment_groups
+from mcfit.turning.windows import _pooled_noise
 
-# Coefficients of a sixth difference.
-_SIXTH_DIFFERENCE = np.array([1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0])
-# Sixth-difference windows needed to fit the equilibrium's drift as well as its offset.
-_DRIFT_WINDOWS = 8
+# Coefficients of the sixth, fourth and second differences, the highest first.
+_DIFFERENCES = (np.array([1.0, -6.0, 15.0, -20.0, 15.0, -6.0, 1.0]),
+                np.array([1.0, -4.0, 6.0, -4.0, 1.0]), np.array([1.0, -2.0, 1.0]))
+# Windows of crests one half-period apart enough to leave out those across a gap.
+_CLEAN_WINDOWS = 8
+# Windows that a difference of an order needs before a lower one is taken instead.
+_ORDER_WINDOWS = 3
+# The envelope divided out of the crests decays only between crests this many standard
+# errors clear of the noise.
+_CLEAR_Z = 10.0
 
 
 def _line_fit(t, x):
@@ -74,42 +81,42 @@ def _equilibrium_line(t, x, period, noise):
     return float(e0), float(e1), t_ref
 
 
-def _equilibrium_correction(centres, fit, half, t_ref):
+def _equilibrium_correction(centres, fit, half, t_ref, gamma=None, duration=np.inf):
     """(d0, d1): equilibrium error from the alternation of the amplitude sequence, in runs
-    of consecutive crests (``half``: local half-periods; a gap breaks a run)."""
-    valid = fit.valid
-    y = fit.y
-    kappa = fit.offset_gain  # y_observed = y_true + kappa*(equilibrium error)
-    # Sixth differences: they remove the decay's smooth trend up to fifth order (second
-    # differences leave its curvature, which biases the offset when Q is low) while the
-    # alternation, at the sequence's Nyquist frequency, gains 64 against white noise's
-    # sqrt(924), more than second differences' 4 against sqrt(6).
-    coefficients = _SIXTH_DIFFERENCE
+    of consecutive crests (``half``: local half-periods; a gap breaks a run).
+
+    ``gamma`` (rows: decay rate and its slope at each crest, as the window fits take them)
+    divides each window of crests by the envelope that rate gives before differencing, so
+    that a fast decay's own trend does not read as an offset. Where the valid crests span
+    half the record's ``duration`` at least, the drift is fitted from two windows up, of
+    lower difference orders where there are too few crests for sixth differences: the
+    coarse line's drift is biased by a fast decay. Crests over less of the record would
+    set a drift over the rest, where the coarse line follows the signal better: there
+    the sixth differences of three windows give the offset, of _CLEAN_WINDOWS the drift.
+    """
+    index = np.flatnonzero(fit.valid)
+    spans = index.size > 1 and centres[index[-1]] - centres[index[0]] >= 0.5 * duration
+    orders = _DIFFERENCES if spans else _DIFFERENCES[:1]
+    coefficients, index = _difference_windows(centres, fit.valid, half, orders)
+    if index.size < (1 if spans else _ORDER_WINDOWS):
+        return 0.0, 0.0
     width = coefficients.size
-    if valid.size < width:
-        return 0.0, 0.0
-    window_valid = _all_within(valid, width)
-    # Across a gap the decay is not smooth in the crest index: windows whose neighbouring
-    # crests are all about one half-period apart are used when there are enough of them
-    # to fit offset and drift; otherwise every window, as a sparse record needs.
-    step_ok = centres[1:] - centres[:-1] < 0.75 * (half[1:] + half[:-1])
-    clean = window_valid & _all_within(step_ok, width - 1)
-    if np.count_nonzero(clean) >= _DRIFT_WINDOWS:
-        window_valid = clean
-    index = np.flatnonzero(window_valid)  # first point of each full window
-    if index.size < 3:
-        return 0.0, 0.0
+    kappa = fit.offset_gain  # y_observed = y_true + kappa*(equilibrium error)
+    with np.errstate(invalid="ignore"):
+        clear = fit.valid & (fit.y > _CLEAR_Z * _pooled_noise(fit) * np.sqrt(fit.gain))
+    log_envelope = _log_envelope(centres, gamma, clear)
     rows, f0, f1 = np.empty((3, index.size))
     for lo in range(0, index.size, _CREST_BLOCK):  # windows of 7 crests: 170 bytes each
         part = index[lo:lo + _CREST_BLOCK, None] + np.arange(width)
-        k_window = kappa[part]
-        rows[lo:lo + part.shape[0]] = y[part] @ coefficients
-        f0[lo:lo + part.shape[0]] = k_window @ coefficients
-        f1[lo:lo + part.shape[0]] = (k_window * (centres[part] - t_ref)) @ coefficients
-    if index.size >= _DRIFT_WINDOWS:
-        design = np.array([f0, f1]).T
-    else:
-        design = f0[:, None]
+        # The window's crests over the envelope, scaled to 1 at its middle crest.
+        scaled = coefficients * np.exp(log_envelope[part[:, width // 2:width // 2 + 1]]
+                                       - log_envelope[part])
+        k_window = kappa[part] * scaled
+        rows[lo:lo + part.shape[0]] = np.sum(fit.y[part] * scaled, axis=1)
+        f0[lo:lo + part.shape[0]] = k_window.sum(axis=1)
+        f1[lo:lo + part.shape[0]] = np.sum(k_window * (centres[part] - t_ref), axis=1)
+    drift_windows = 2 if spans else _CLEAN_WINDOWS
+    design = np.array([f0, f1]).T if index.size >= drift_windows else f0[:, None]
     solution, *_ = np.linalg.lstsq(design, rows, rcond=None)
     if not np.isfinite(solution).all():
         return 0.0, 0.0
@@ -117,6 +124,50 @@ def _equilibrium_correction(centres, fit, half, t_ref):
     d0 = float(solution[0])
     d1 = float(solution[1]) if solution.size > 1 else 0.0
     return d0, d1
+
+
+def _difference_windows(centres, valid, half, orders=_DIFFERENCES):
+    """(coefficients, first crest of each window): the highest difference order of
+    ``orders`` with _ORDER_WINDOWS windows of valid crests (else the one with the most
+    windows), and its windows.
+
+    Sixth differences remove the decay's smooth trend up to fifth order (second
+    differences leave its curvature, which biases the offset when Q is low) while the
+    alternation, at the sequence's Nyquist frequency, gains 64 against white noise's
+    sqrt(924), more than second differences' 4 against sqrt(6); a record of a few crests
+    has too few windows of seven.
+    """
+    # Across a gap the decay is not smooth in the crest index: windows whose neighbouring
+    # crests are all about one half-period apart are used when there are enough of them;
+    # otherwise every window, as a sparse record needs.
+    step_ok = centres[1:] - centres[:-1] < 0.75 * (half[1:] + half[:-1])
+    best = (orders[-1], np.zeros(0, dtype=np.int64))
+    for coefficients in orders:
+        width = coefficients.size
+        if valid.size < width:
+            continue
+        window_valid = _all_within(valid, width)
+        clean = window_valid & _all_within(step_ok, width - 1)
+        if np.count_nonzero(clean) >= _CLEAN_WINDOWS:
+            window_valid = clean
+        index = np.flatnonzero(window_valid)
+        if index.size >= _ORDER_WINDOWS:
+            return coefficients, index
+        if index.size > best[1].size:
+            best = (coefficients, index)
+    return best
+
+
+def _log_envelope(centres, gamma, clear):
+    """Log of the envelope exp(-integral of the decay rate) at each crest (0 at the
+    first), from the rates ``gamma[0]`` by the trapezoid rule; zeros without them. The
+    rate counts only at crests ``clear`` of the noise: in the noise it is the noise's, and
+    an envelope from it would weight the crests at random."""
+    if gamma is None or not np.any(gamma[0]):
+        return np.zeros(centres.size)
+    rate = np.where(clear, gamma[0], 0.0)
+    integral = 0.5 * (rate[1:] + rate[:-1]) * np.diff(centres)
+    return -np.concatenate([[0.0], np.cumsum(integral)])
 
 
 def _all_within(flags, width):

@@ -51,8 +51,12 @@ def _refine(samples, centres, signs, line, period, noise, held):
         # Flattened crests would bias the equilibrium update.
         fit.valid &= ~_clipped(fit, signs) & (np.arange(centres.size) >= _held_crests(
             centres, held, period))
-        delta0, delta1 = _equilibrium_correction(centres, fit, half, t_ref)
+        delta0, delta1 = _equilibrium_correction(centres, fit, half, t_ref, gamma,
+                                                  samples.t[-1] - samples.t[0])
         e0, e1 = e0 + delta0, e1 + delta1
+        # The amplitudes as the corrected line gives them, for the next pass's decay
+        # rates: else the old line's alternation bends the envelope the other way.
+        fit.y -= fit.offset_gain * (delta0 + delta1 * (centres - t_ref))
         settled = refinement > 0 and _shifts_within_noise(fit, half, noise)
         centres, signs, valid, y = _recentred(centres, signs, fit, half)
         del fit  # not beside the next pass's (a hundred bytes a crest)

@@ -1,4 +1,6 @@
-"""The start of the free decay: a signal held still, or amplitudes rising or flat (knee)."""
+"""The start of the free decay: a signal held still, amplitudes rising or flat (knee), or
+a rise of the amplitude to its largest after a fall. Every decision on where a free decay
+starts is taken here; :mod:`.checks` asks :func:`_release_at_rise` about each rise."""
 
 from __future__ import annotations
 
@@ -240,6 +242,40 @@ def _knee_significance(s, y, signs, sigma):
     if smooth - chi2 < _RELEASE_Z**2:
         return 0.0
     return float((slope_before - slope_after) / np.sqrt(spread))
+
+
+def _release_at_rise(times, smooth, k, noise, sigma, floor):
+    """(release time, note) where the rise of the smoothed amplitudes ``smooth`` (at
+    ``times``) to crest ``k`` (found by :func:`_rise`) starts the free decay, else None.
+
+    It does where the amplitude rises to its largest, in the first half of the crests,
+    with the decay undisturbed after it (no clear rise there): the oscillator was held,
+    driven or disturbed before. ``noise``, ``sigma`` and ``floor`` as for :func:`_rise`.
+    Only amplitudes are needed, so this serves turning-point tables too.
+    """
+    if not (smooth[k] >= smooth[0] and 2 * k < smooth.size
+            and _rise(smooth[k:], noise, sigma[k:], floor) is None):
+        return None
+    dip = int(np.argmin(smooth[:k + 1]))
+    release = float(times[k])
+    return release, (f"the free decay starts at t = {release:.6g}, where the amplitude "
+                     f"rises to its largest ({smooth[k]:.3g}) after falling to "
+                     f"{smooth[dip]:.3g}: held, driven or disturbed before it; {k} turning "
+                     "points before it left out")
+
+
+def _rise(smooth, noise, sigma, floor):
+    """Index of the largest clear rise of the smoothed amplitudes after a fall, or None."""
+    running_min = np.minimum.accumulate(smooth)
+    rise = smooth - running_min
+    # Crests in the noise can be <= 0: a rise from there is judged against the noise.
+    k = int(np.argmax(rise / np.maximum(running_min, max(noise, 1e-300))))
+    # Near the ends the median is the crest itself, often an edge-cut window: judge the
+    # rise against that crest's own uncertainty when it is the larger.
+    if (smooth[k] > 1.3 * running_min[k] and rise[k] > 5 * max(noise, sigma[k])
+            and running_min[k] < smooth[0] and smooth[k] > 3 * floor):
+        return k
+    return None
 
 
 def _release_note(time, count, cause):

@@ -307,9 +307,14 @@ def _local_decay_rates(centres, y, omega, valid):
     at = centres[index]
     log_y = np.log(y[index])
     rate = (log_y[:-1] - log_y[1:]) / (at[1:] - at[:-1])
+    middle = 0.5 * (at[1:] + at[:-1])
     if rate.size >= 7:
         rate = _running_median(rate, 7)
-    middle = 0.5 * (at[1:] + at[:-1])
+    else:
+        # Too few for the median: rates between crests of one sign, which an offset of
+        # the equilibrium moves alike, not in turn (the median of seven damps that).
+        rate = (log_y[:-2] - log_y[2:]) / (at[2:] - at[:-2])
+        middle = at[1:-1]
     bound = 0.3 * omega
     gamma = np.minimum(np.maximum(_interpolate_extending_ends(centres, middle, rate), -bound),
                        bound)
