@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from functools import partial
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -10,11 +11,9 @@ import numpy as np
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.diagnostics import misfit_warning
-from mcfit.fit.eom_waveform import fit_pendulum_waveform
 from mcfit.fit.models import TERMS, terms_of
-from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_pendulum, large_swing_warning,
-                                names_degrees)
-from mcfit.fit.selection import LRT_ALPHA
+from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_turning_points_of_pendulum,
+                                large_swing_warning, names_degrees)
 from mcfit.options import check_fit_options
 from mcfit.turning import TurningPoints, turning_points_of
 
@@ -232,7 +231,7 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
     period_sigma = turning.period_sigma if math.isfinite(turning.period_sigma) else None
     if pendulum:
-        return _fit_pendulum(turning, sigma, period, period_sigma, degrees, **options)
+        return fit_turning_points_of_pendulum(turning, sigma, degrees, **options)
     fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
                     period_sigma=period_sigma, domain=turning.domain, **options)
     return with_large_swing_warning(fit, turning, degrees)
@@ -311,19 +310,59 @@ def _auto_method(record, turning, fit, *, criterion, model):
     if error.largest <= LIMIT:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
     waveform = _waveform_fit(record, turning, fit, criterion, model)
+    dof = fit.n_points - 1 - len(fit.selection.terms)
+    return _reported_of(fit, waveform, said, "the equation of motion",
+                        bool(misfit_warning(fit.reduced_chi_square, dof)))
+
+
+def _reported_of(fit, waveform, said, motion, averaged_misfits):
+    """The ``waveform`` fit (by ``motion``) where it describes the record; else the
+    turning-point ``fit`` unless it misfits too, with a warning either way."""
     if describes_waveform(waveform):
-        return replace(waveform, method_reason=f"{said}: fitted by the equation of motion")
-    if not misfit_warning(fit.reduced_chi_square, fit.n_points - 1 - len(fit.selection.terms)):
-        return replace(fit, method_reason=f"{said}, but the equation of motion does not fit "
-                       "the waveform: the turning-point fit is kept",
-                       warnings=fit.warnings + (_misfit_warning(waveform) + "; the "
-                                                "turning-point fit is reported, biased by the "
-                                                "amount predicted",))
+        return replace(waveform, method_reason=f"{said}: fitted by {motion}")
+    warning = _misfit_warning(waveform)
+    if not averaged_misfits:
+        return replace(fit, method_reason=f"{said}, but {motion} does not fit the waveform: "
+                       "the turning-point fit is kept", warnings=fit.warnings + (
+                           warning + "; the turning-point fit is reported, biased by the "
+                           "amount predicted",))
     return _unresolved(replace(
-        waveform, method_reason=f"{said}: fitted by the equation of motion, which misfits "
-        "as the turning-point fit does", warnings=waveform.warnings + (
-            _misfit_warning(waveform) + f"; the turning-point fit misfits too (reduced "
-            f"chi-square {fit.reduced_chi_square:.3g}): the regimes are not resolved",)))
+        waveform, method_reason=f"{said}: fitted by {motion}, which misfits as the "
+        "turning-point fit does", warnings=waveform.warnings + (
+            warning + f"; the turning-point fit misfits too (reduced chi-square "
+            f"{fit.reduced_chi_square:.3g}): the regimes are not resolved",)))
+
+
+def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
+    """``fit`` (the pendulum's averaged law on the turning points), or the waveform fit
+    by the pendulum's equation of motion where the averaged law would be biased by more
+    than a standard error (:func:`mcfit.model_error.pendulum_law_bias`) or misfits."""
+    from mcfit.fit.eom_waveform import PendulumWaveform, PendulumWaveformFit, with_pendulum_q
+    from mcfit.fit.waveform import WaveformStart, fit_waveform
+    from mcfit.model_error import pendulum_law_bias
+
+    if (record.kind != "waveform" or fit.domain != "time" or fit.omega is None
+            or not fit.selection.terms):
+        return fit
+    dof = fit.n_points - 1 - len(fit.selection.terms)
+    misfits = not fit.noise_from_residuals and bool(misfit_warning(fit.reduced_chi_square,
+                                                                    dof))
+    # A misfit asks for the waveform fit whatever the bias: the chain is not run.
+    bias = math.nan if misfits else pendulum_law_bias(record.t, turning, fit, degrees)
+    said = (f"the averaged large-swing law misfits (reduced chi-square "
+            f"{fit.reduced_chi_square:.3g})" if misfits else
+            f"the averaged large-swing law's bias is predicted at {bias:.2g} standard errors")
+    if not misfits and bias <= 1.0:
+        return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
+    kind = partial(PendulumWaveform, radians_per_unit=RADIANS_PER_DEGREE if degrees else 1.0)
+    x = _without_steady_line(record.t, record.x, turning.steady_line)
+    waveform = PendulumWaveformFit.of(fit_waveform(
+        record.t, x, turning, WaveformStart.of_fit(fit), criterion=criterion, forced=model,
+        form="velocity", kind=kind), fit)
+    waveform = with_pendulum_q(replace(waveform, damping_form_reason=(
+        "the pendulum's equation of motion, with the velocity forms of the damping (viscous, "
+        "quadratic drag, sliding friction)")))
+    return _reported_of(fit, waveform, said, "the pendulum's equation of motion", misfits)
 
 
 # How each value of ``method`` (mcfit.options.FIT_METHODS) chooses the reported fit: "auto"
@@ -433,20 +472,6 @@ def _misfit_warning(waveform):
             "model (a damping force of another form, a disturbance, a second mode)")
 
 
-def _fit_pendulum(turning, sigma, period, period_sigma, degrees, *, criterion="aicc",
-                  model=None, bootstrap=0, rng=None, alpha=LRT_ALPHA):
-    if turning.domain != "time":
-        raise FitError("the pendulum correction needs turning points against time, not "
-                       "cycle number", option="pendulum")
-    used = turning.used
-    # Half-cycle fits of a waveform measure the fundamental; a table gives the extrema.
-    table = not math.isfinite(turning.noise_sigma)
-    return fit_pendulum(turning.t[used], turning.y[used], sigma, period=period,
-                        period_sigma=period_sigma, signs=turning.sign[used], degrees=degrees,
-                        amplitudes="peak" if table else "fundamental", criterion=criterion,
-                        model=model, alpha=alpha)
-
-
 def crop_record(record, start=None, end=None):
     """``record`` kept to ``start <= t <= end`` (either may be None), with a note.
 
@@ -522,8 +547,8 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
                 chosen = with_large_swing_warning(chosen, turning, degrees)
             fit = chosen
         else:
-            fit = fit_pendulum_waveform(record, turning, fit, degrees, criterion=criterion,
-                                        model=model)
+            fit = _pendulum_method(record, turning, fit, degrees, criterion=criterion,
+                                   model=model)
         if turning.warnings and fit.model != "power":
             fit = _unresolved(fit)  # a beat or disturbance was left out: no confident verdict
     except McfitError as error:

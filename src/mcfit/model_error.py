@@ -18,7 +18,7 @@ import numpy as np
 
 from mcfit.phase_plane import phase_plane_motion
 
-__all__ = ["LIMIT", "SCREEN_CONSTANT", "ModelError", "averaged_law_bias"]
+__all__ = ["LIMIT", "SCREEN_CONSTANT", "ModelError", "averaged_law_bias", "pendulum_law_bias"]
 
 # The waveform fit is worth its cost where the averaged law's bias exceeds this many
 # standard errors of a coefficient.
@@ -104,10 +104,45 @@ def _fitted_values(turning, model) -> dict:
     from mcfit.fit.decay_fit import fit_model_values
 
     used = turning.used
-    sigma = turning.sigma[used]
-    usable = np.all(np.isfinite(sigma)) and np.all(sigma > 0)
-    return fit_model_values(turning.t[used], turning.y[used], sigma if usable else None,
+    return fit_model_values(turning.t[used], turning.y[used], _used_sigma(turning),
                             model=model)
+
+
+def _used_sigma(turning):
+    """The used turning points' uncertainties, or None unless each is finite and > 0."""
+    sigma = turning.sigma[turning.used]
+    return sigma if np.all(np.isfinite(sigma)) and np.all(sigma > 0) else None
+
+
+def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
+    """The largest shift, in standard errors, of the pendulum's averaged law's
+    coefficients fitted as the record's were to the noise-free swing of the fitted ones:
+    the pendulum's equation of motion sampled at the record's times, its turning points
+    found and the law of the same model fitted. inf where that chain fails."""
+    from mcfit.equation_of_motion import motion_with_sensitivities
+    from mcfit.errors import McfitError
+    from mcfit.fit.pendulum import fit_turning_points_of_pendulum
+    from mcfit.turning import find_turning_points
+
+    used = np.flatnonzero(turning.used)
+    t0 = float(turning.t[used[0]])
+    times = t[t >= t0]
+    theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
+    s = math.pi / 180.0 if degrees else 1.0
+    v, omega = fit.values, fit.omega
+    swing, _ = motion_with_sensitivities(
+        times - t0, v["y0"] * s, theta0, omega, v["b"], 0.75 * math.pi * v["a"] / (omega * s),
+        0.5 * math.pi * omega * v["c"] * s, restoring="pendulum", rtol=1e-10)
+    try:
+        found = find_turning_points(times, turning.equilibrium_at(times) + swing / s,
+                                    settle_noise=_positive(turning.noise_sigma))
+        again = fit_turning_points_of_pendulum(found, _used_sigma(found), degrees,
+                                               model=fit.model)
+    except McfitError:
+        return math.inf
+    z = [abs(again.values[k] - v[k]) / fit.stderr[k] for k in fit.selection.terms
+         if fit.stderr.get(k)]
+    return max(z, default=math.inf)
 
 
 def _positive(value):

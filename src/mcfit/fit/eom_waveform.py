@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields, replace
-from functools import partial
 
 import numpy as np
 
@@ -23,8 +22,7 @@ from mcfit.fit.pendulum import PendulumFit, with_pendulum_entry
 from mcfit.fit.waveform import WaveformFit, _Waveform
 
 __all__ = ["EquationOfMotionWaveform", "PendulumWaveform", "PendulumWaveformFit",
-           "fit_pendulum_waveform",
-           "pendulum_law_bias"]
+           "with_pendulum_q"]
 
 # The integration's relative tolerance: this share of the noise over the amplitude (the
 # error at the end of a long record is a few times the tolerance), within these limits.
@@ -106,53 +104,7 @@ class PendulumWaveformFit(WaveformFit):
         return with_pendulum_entry(super().to_dict(), self)
 
 
-def fit_pendulum_waveform(record, turning, fit, degrees=False, *, criterion="aicc",
-                          model=None):
-    """``fit`` (the pendulum's averaged law on the turning points), or the waveform fit
-    by the pendulum's equation of motion where the averaged law would be biased by more
-    than a standard error (:func:`pendulum_law_bias`) or misfits. The result says which
-    and why (``method_reason``); a misfit is never silent."""
-    from mcfit.analysis import (_misfit_warning, _unresolved,  # noqa: PLC0415 (cycle)
-                                _without_steady_line, describes_waveform)
-    from mcfit.fit.diagnostics import misfit_warning  # noqa: PLC0415
-    from mcfit.fit.waveform import WaveformStart, fit_waveform  # noqa: PLC0415
-
-    if (record.kind != "waveform" or fit.domain != "time" or fit.omega is None
-            or not fit.selection.terms):
-        return fit
-    dof = fit.n_points - 1 - len(fit.selection.terms)
-    misfits = not fit.noise_from_residuals and bool(misfit_warning(fit.reduced_chi_square,
-                                                                    dof))
-    # A misfit asks for the waveform fit whatever the bias: the chain is not run.
-    bias = math.nan if misfits else pendulum_law_bias(record.t, turning, fit, degrees)
-    said = (f"the averaged large-swing law misfits (reduced chi-square "
-            f"{fit.reduced_chi_square:.3g})" if misfits else
-            f"the averaged large-swing law's bias is predicted at {bias:.2g} standard errors")
-    if not misfits and bias <= 1.0:
-        return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
-    kind = partial(PendulumWaveform, radians_per_unit=math.pi / 180.0 if degrees else 1.0)
-    x = _without_steady_line(record.t, record.x, turning.steady_line)
-    waveform = PendulumWaveformFit.of(fit_waveform(
-        record.t, x, turning, WaveformStart.of_fit(fit), criterion=criterion, forced=model,
-        form="velocity", kind=kind), fit)
-    waveform = _with_pendulum_q(replace(waveform, damping_form_reason=(
-        "the pendulum's equation of motion, with the velocity forms of the damping (viscous, "
-        "quadratic drag, sliding friction)")))
-    if describes_waveform(waveform):
-        return replace(waveform, method_reason=f"{said}: fitted by the pendulum's equation "
-                       "of motion")
-    warning = _misfit_warning(waveform)
-    if not misfits:
-        return replace(fit, method_reason=f"{said}, but the pendulum's equation of motion "
-                       "does not fit the waveform: the turning-point fit is kept",
-                       warnings=fit.warnings + (warning + "; the turning-point fit is "
-                                                "reported, biased by the amount predicted",))
-    return _unresolved(replace(waveform, method_reason=f"{said}: fitted by the pendulum's "
-                               "equation of motion, which misfits as the averaged law does",
-                               warnings=waveform.warnings + (warning,)))
-
-
-def _with_pendulum_q(fit):
+def with_pendulum_q(fit):
     """``fit`` with its amplitudes by the pendulum's law and Q(t) the energy's (THEORY.md
     section 8), as the pendulum's law reports them; Q's relative errors are those of the
     small-angle Q it replaces (both scale as 1/rate)."""
@@ -168,33 +120,3 @@ def _with_pendulum_q(fit):
     q_stderr = None if fit.q_stderr is None else q * fit.q_stderr / fit.q
     return replace(fit, y_fit=y_fit, q=q, q_stderr=q_stderr, q_summary=summarise_q(q, q_stderr),
                    q_parts={"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]})
-
-
-def pendulum_law_bias(t, turning, fit, degrees=False):
-    """The largest shift, in standard errors, of the averaged law's coefficients fitted
-    as the record's were to the noise-free swing of the fitted ones: the pendulum's
-    equation of motion sampled at the record's times, its turning points found and the
-    law of the same model fitted. inf where that chain fails."""
-    from mcfit.analysis import fit_turning_points  # noqa: PLC0415 (import cycle)
-    from mcfit.errors import McfitError  # noqa: PLC0415
-    from mcfit.turning import find_turning_points  # noqa: PLC0415
-
-    used = np.flatnonzero(turning.used)
-    t0 = float(turning.t[used[0]])
-    times = t[t >= t0]
-    theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
-    s = math.pi / 180.0 if degrees else 1.0
-    v, omega = fit.values, fit.omega
-    swing, _ = motion_with_sensitivities(
-        times - t0, v["y0"] * s, theta0, omega, v["b"], 0.75 * math.pi * v["a"] / (omega * s),
-        0.5 * math.pi * omega * v["c"] * s, restoring="pendulum", rtol=1e-10)
-    noise = turning.noise_sigma
-    try:
-        found = find_turning_points(times, turning.equilibrium_at(times) + swing / s,
-                                    settle_noise=noise if noise > 0 else None)
-        again = fit_turning_points(found, pendulum=True, degrees=degrees, model=fit.model)
-    except McfitError:
-        return math.inf
-    z = [abs(again.values[k] - v[k]) / fit.stderr[k] for k in fit.selection.terms
-         if fit.stderr.get(k)]
-    return max(z, default=math.inf)

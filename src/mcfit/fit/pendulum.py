@@ -48,7 +48,7 @@ from mcfit.fit.reported import TOLERANCES, lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
 from mcfit.fit.uncertainty import physical_errors, summarise_q, term_correlations
 
-__all__ = ["PendulumFit", "fit_pendulum", "geometric_factors", "period_ratio",
+__all__ = ["PendulumFit", "fit_pendulum", "fit_turning_points_of_pendulum", "geometric_factors", "period_ratio",
            "fundamental_amplitude",
            "names_degrees", "RADIANS_PER_DEGREE", "large_swing_warning"]
 
@@ -350,6 +350,25 @@ def fit_pendulum(t, y, sigma=None, *, period=None, period_sigma=None, signs=None
     return _reported(t, y, sigma, tau, theta, weights, span, scale, candidates, selection,
                      period, period_sigma, signs, noise_from_residuals,
                      "deg" if degrees else "rad")
+
+
+def fit_turning_points_of_pendulum(turning, sigma=None, degrees=False, *, criterion="aicc",
+                                   model=None, bootstrap=0, rng=None, alpha=LRT_ALPHA):
+    """:func:`fit_pendulum` on the used points of ``turning`` (a
+    :class:`mcfit.turning.TurningPoints`) with their ``sigma``: peak angles from a table
+    of extrema, fundamentals from a waveform's half-cycle fits. ``bootstrap`` and ``rng``
+    are not available here."""
+    if turning.domain != "time":
+        raise FitError("the pendulum correction needs turning points against time, not "
+                       "cycle number", option="pendulum")
+    used = turning.used
+    period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
+    period_sigma = turning.period_sigma if math.isfinite(turning.period_sigma) else None
+    table = not math.isfinite(turning.noise_sigma)
+    return fit_pendulum(turning.t[used], turning.y[used], sigma, period=period,
+                        period_sigma=period_sigma, signs=turning.sign[used], degrees=degrees,
+                        amplitudes="peak" if table else "fundamental", criterion=criterion,
+                        model=model, alpha=alpha)
 
 
 def _physical(values, span, scale):
