@@ -129,3 +129,15 @@ def test_quadratic_drag_is_the_velocity_form_of_the_fluid_term():
         drag = fit.physical["kappa"]
         assert abs(drag["value"] - kappa) < 3 * drag["stderr"] and drag["unit"] == "1/U"
         assert fit.reduced_chi_square < 1.25
+
+
+def test_a_trial_step_the_integrator_cannot_follow_is_a_huge_finite_misfit():
+    """lmfit refuses NaN residuals; a run-away motion (negative damping) must be a misfit
+    the solver steps back from."""
+    t = np.linspace(0.0, 10.0, 101)
+    waveform = EquationOfMotionWaveform(t, np.zeros_like(t), 0.0, ("b",), 1e-3)
+    waveform.typical = np.ones(6)
+    p = np.array([1.0, 0.0, OMEGA, 0.0, 0.0, -50.0])
+    residual, jacobian = waveform.residual(p), waveform.jacobian(p)
+    assert np.all(np.isfinite(residual)) and np.all(np.isfinite(jacobian))
+    assert np.max(np.abs(residual)) > 1e50

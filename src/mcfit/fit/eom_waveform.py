@@ -63,6 +63,10 @@ class EquationOfMotionWaveform(_Waveform):
             columns["c"] = sens[:, 5] * friction
             columns["omega"] = columns["omega"] + sens[:, 5] * friction * c / omega
         jacobian = np.column_stack([columns[name] for name in self.names])
+        # Where a trial step's motion cannot be followed (NaN), a huge finite misfit: the
+        # solvers step back from it (lmfit refuses NaN).
+        motion = np.nan_to_num(motion, nan=1e100 * max(abs(y0 * s), 1.0))
+        jacobian = np.nan_to_num(jacobian, nan=0.0)
         return motion / s + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
 
 
