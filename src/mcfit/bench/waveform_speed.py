@@ -144,6 +144,7 @@ def main():
     """Child process: measure the spec in ``sys.argv[1]`` (JSON: records, runs, seed) and
     print the rows as JSON."""
     from mcfit.analysis import analyse_record, fit_both_forms, fit_turning_points
+    from mcfit.fit.waveform import WaveformStart
     from mcfit.turning import find_turning_points
 
     spec = json.loads(sys.argv[1])
@@ -166,7 +167,7 @@ def main():
             if turning is None:  # too few turning points to start from
                 waveform.append((q, mix, None))
                 continue
-            start = fit_turning_points(turning)
+            start = WaveformStart.of_fit(fit_turning_points(turning))
             best = min(_cpu(fit_both_forms, t, x, turning, start)[0]
                        for _ in range(spec["runs"]))
             waveform.append((q, mix, best))
