@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import fft, optimize
 from scipy.stats import median_abs_deviation  # lmfit imports scipy.stats anyway
+from threadpoolctl import threadpool_limits
 
 from mcfit import decay
 from mcfit.errors import FitError
@@ -196,6 +197,12 @@ def _velocity_waveform(t, x, t0, terms, noise):
 FORMS = {"amplitude": (_Waveform, MODELS), "velocity": (_velocity_waveform, MODELS)}
 
 
+# BLAS on one thread: the solver's SVD of a 10^4 x 8 Jacobian took six times the CPU on
+# two threads as on one (the threads spin), and a batch already runs a record per core.
+_ONE_BLAS_THREAD = threadpool_limits.wrap(limits=1, user_api="blas")
+
+
+@_ONE_BLAS_THREAD
 def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
                  forced=None, form="amplitude", kind=None):
     """Fit the samples between the first and the last used turning point by the equation
@@ -374,6 +381,7 @@ def _likely(scores, models):
         set(models) - set(scores))
 
 
+@_ONE_BLAS_THREAD
 def fit_candidate(waveform, start):
     """One model's waveform fitted from ``start`` to full tolerance: (its
     :class:`mcfit.fit.candidates.Candidate`, scipy's result)."""
