@@ -10,7 +10,7 @@ import pytest
 
 from mcfit.analysis import analyse_record
 from mcfit.bench import reference_motion as motion
-from mcfit.fit.eom_waveform import EquationOfMotionWaveform, PendulumWaveform
+from mcfit.fit.waveform_laws import EquationOfMotionWaveform, PendulumWaveform
 from mcfit.record import Record
 
 OMEGA = 2 * math.pi

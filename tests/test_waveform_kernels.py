@@ -1,5 +1,5 @@
-"""The waveform fit's evaluations of the model and its Jacobian (mcfit.fit.waveform's
-_Waveform and _VelocityWaveform) against differences of the motion itself."""
+"""The waveform fit's evaluations of the model and its Jacobian (mcfit.fit.waveform_laws'
+AmplitudeWaveform and VelocityWaveform) against differences of the motion itself."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from mcfit.fit import waveform
+from mcfit.fit import waveform_laws
 from mcfit.viscous_motion import viscous_motion
 
 OMEGA = 2 * math.pi
@@ -22,7 +22,7 @@ def test_the_velocity_forms_jacobian_is_the_derivative_of_the_residuals(terms, v
     """Columns y0, theta0, omega, offset, drift and the terms against central differences
     of the residuals (in noise units), b held below omega included."""
     t = np.linspace(0.0, 8.0, 1601)
-    form = waveform._VelocityWaveform(t, np.zeros(t.size), 0.0, terms, 1e-3)
+    form = waveform_laws.VelocityWaveform(t, np.zeros(t.size), 0.0, terms, 1e-3)
     p = np.array([1.2, 0.4, OMEGA, 0.01, 0.002] + values)
     jacobian = form.jacobian(p)
     for i in range(p.size):
@@ -38,7 +38,7 @@ def test_the_velocity_forms_jacobian_is_the_derivative_of_the_residuals(terms, v
 def test_the_velocity_forms_residuals_are_the_closed_form():
     t = np.linspace(0.5, 8.5, 801)
     x = np.sin(t)
-    form = waveform._VelocityWaveform(t, x, 0.5, "bc", 2e-3)
+    form = waveform_laws.VelocityWaveform(t, x, 0.5, "bc", 2e-3)
     p = np.array([1.2, 0.4, OMEGA, 0.01, 0.002, 0.4, 0.02])
     tau = t - 0.5
     expected = viscous_motion(tau, 1.2, 0.4, OMEGA, 0.4, 0.02) + 0.01 + 0.002 * tau

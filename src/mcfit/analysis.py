@@ -337,7 +337,8 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
     """``fit`` (the pendulum's averaged law on the turning points), or the waveform fit
     by the pendulum's equation of motion where the averaged law would be biased by more
     than a standard error (:func:`mcfit.model_error.pendulum_law_bias`) or misfits."""
-    from mcfit.fit.eom_waveform import PendulumWaveform, PendulumWaveformFit, with_pendulum_q
+    from mcfit.fit.pendulum_waveform import PendulumWaveformFit, with_pendulum_q
+    from mcfit.fit.waveform_laws import PendulumWaveform
     from mcfit.fit.waveform import WaveformStart, fit_waveform
     from mcfit.model_error import pendulum_law_bias
 

@@ -13,8 +13,9 @@ Each term has two physical forms with the same averaged law (THEORY.md section 9
 Eq. 20.55's amplitude forms (``form="amplitude"``) and the velocity forms, viscous
 2*beta*x' for b, quadratic drag kappa*x'*|x'| for a and sliding friction mu*sgn(x') for c
 (``form="velocity"``, in closed form by :func:`mcfit.viscous_motion.viscous_motion`
-without drag, integrated by :mod:`mcfit.fit.eom_waveform` with it). At low Q they differ
-at order 1/Q; :data:`FORMS` lists them.
+without drag, integrated by :mod:`mcfit.equation_of_motion` with it). At low Q they differ
+at order 1/Q; :data:`FORMS` lists them, each form's model and Jacobian a law of
+:mod:`mcfit.fit.waveform_laws`.
 """
 
 from __future__ import annotations
@@ -36,12 +37,10 @@ from mcfit.fit.diagnostics import fit_warnings
 from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
 from mcfit.fit.reported import lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
-from mcfit.phase_plane import phase_plane_differences
-from mcfit.viscous_motion import coulomb_force, viscous_motion_jacobian
+from mcfit.fit.waveform_laws import AmplitudeWaveform, velocity_waveform
+from mcfit.viscous_motion import coulomb_force
 
 __all__ = ["FORMS", "WaveformFit", "WaveformStart", "fit_waveform", "fit_candidate"]
-# Nuisance parameters of the waveform besides y0: phase, frequency, offset, drift.
-_NUISANCE = ("theta0", "omega", "e0", "e1")
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
 # A candidate far from contention is fitted only until chi-square falls by less than this
 # share in a step (within about 1e-5 of converged, in a third of the steps).
@@ -52,85 +51,6 @@ _CONTENTION = 1000.0
 # The turning-point fit's AICc within this of its best: likely in contention (fitted to
 # full tolerance at once; the others are screened first).
 _LIKELY = 20.0
-
-
-class _Waveform:
-    """The samples to fit, the residuals of the model x(t) and their Jacobian at a
-    parameter vector (y0, theta0, omega, e0, e1, then the model's terms)."""
-
-    chi_square_scale = 1.0  # residuals in noise units: chi-square as it is
-
-    def __init__(self, t, x, t0, terms, noise):
-        self.t, self.x, self.t0, self.terms, self.noise = t, x, t0, terms, noise
-        self.names = self.free = ("y0",) + _NUISANCE + tuple(terms)
-        self.memory = {}  # the last solution of the motion starts the next
-
-    def covariance(self, parameters):
-        """Unscaled (J^T J)^-1 (pseudo-inverse)."""
-        jacobian = self.jacobian(parameters)
-        return np.linalg.pinv(jacobian.T @ jacobian)
-
-    def _motion(self, p):
-        """(y0, theta0, omega, a, b, c) of each row of ``p``."""
-        motion = np.zeros((p.shape[0], 6))
-        motion[:, :3] = p[:, :3]
-        for i, k in enumerate(self.terms):
-            motion[:, 3 + TERMS.index(k)] = p[:, 5 + i]
-        return motion
-
-    def residual(self, parameters):
-        """Residuals in noise units; the Jacobian at the same point comes with them (the
-        solver asks for it next at every step it takes) and is kept for :meth:`jacobian`."""
-        p = np.array(parameters, dtype=float)
-        x, self._kept = self._with_jacobian(p)
-        return (x - self.x) / self.noise
-
-    def jacobian(self, parameters):
-        p = np.asarray(parameters, dtype=float)
-        kept = getattr(self, "_kept", None)
-        if kept is not None and np.array_equal(kept[0], p):
-            return kept[1]
-        return self._with_jacobian(p)[1][1]
-
-    def _with_jacobian(self, p):
-        """x at ``p``, and (p, the Jacobian of the residuals) by forward differences of the
-        motion (:meth:`_motion_jacobian`); offset and drift enter linearly."""
-        tau = self.t - self.t0
-        moved = [0, 1, 2] + list(range(5, p.size))
-        motion, derivatives = self._motion_jacobian(tau, p, moved)
-        jacobian = np.empty((self.t.size, p.size))
-        jacobian[:, moved] = derivatives.T
-        jacobian[:, 3] = 1.0
-        jacobian[:, 4] = tau
-        return motion + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
-
-    def _motion_jacobian(self, tau, p, moved):
-        """The motion at ``p`` and its derivatives in the parameters of ``moved``, shape
-        (len(moved), n): forward differences from one solution
-        (:func:`mcfit.phase_plane.phase_plane_differences`)."""
-        steps = 1e-7 * np.maximum(np.abs(p), self.typical)
-        motion, changes = phase_plane_differences(tau, self._motion(p[None])[0],
-                                                  self._motion(np.diag(steps)[moved]),
-                                                  self.memory)
-        return motion, changes / steps[moved, None]
-
-
-class _VelocityWaveform(_Waveform):
-    """As :class:`_Waveform` for the velocity forms: viscous b and sliding friction c, the
-    motion and its derivatives in closed form
-    (:func:`mcfit.viscous_motion.viscous_motion_jacobian`)."""
-
-    def _motion_jacobian(self, tau, p, moved):
-        terms = dict(zip(self.terms, p[5:]))
-        b, omega = terms.get("b", 0.0), p[2]
-        clipped = b > 0.99 * omega  # beta held below omega
-        x, by = viscous_motion_jacobian(tau, p[0], p[1], omega, min(b, 0.99 * omega),
-                                        terms.get("c", 0.0))
-        rows = {"y0": by[0], "theta0": by[1],
-                "omega": by[2] + 0.99 * by[3] if clipped else by[2],
-                "b": 0.0 * by[3] if clipped else by[3], "c": by[4]}
-        return x, np.array([rows[self.names[i]] for i in moved])
-
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # DecayFit's short repr
@@ -183,18 +103,9 @@ class WaveformStart:
                    fit.t, fit.y, fit.sigma)
 
 
-def _velocity_waveform(t, x, t0, terms, noise):
-    """The velocity forms: in closed form without quadratic drag, integrated with it."""
-    if "a" not in terms:
-        return _VelocityWaveform(t, x, t0, terms, noise)
-    from mcfit.fit.eom_waveform import EquationOfMotionWaveform  # noqa: PLC0415 (cycle)
-
-    return EquationOfMotionWaveform(t, x, t0, terms, noise)
-
-
 # The physical forms of the damping terms: the waveform model of each and the candidate
 # models it offers.
-FORMS = {"amplitude": (_Waveform, MODELS), "velocity": (_velocity_waveform, MODELS)}
+FORMS = {"amplitude": (AmplitudeWaveform, MODELS), "velocity": (velocity_waveform, MODELS)}
 
 
 # BLAS on one thread: the solver's SVD of a 10^4 x 8 Jacobian took six times the CPU on
