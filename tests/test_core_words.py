@@ -9,7 +9,7 @@ from mcfit.options import FLAGS, for_command_line
 
 SOURCE = Path(__file__).parents[1] / "src" / "mcfit"
 CORE = ["record.py", "decay.py", "motion.py", "phase_plane.py", "hum.py", "model_error.py",
-        "analysis.py", "bounds.py", "api.py", "report.py", "batch.py", "plain.py",
+        "analysis.py", "bounds.py", "api.py", "report.py", "batch.py", "plain.py", "dask_jobs.py",
         *(f"io/{p.name}" for p in sorted((SOURCE / "io").glob("*.py"))),
         *(f"fit/{p.name}" for p in (SOURCE / "fit").glob("*.py")),
         *(f"turning/{p.name}" for p in sorted((SOURCE / "turning").glob("*.py")))]

@@ -1,10 +1,10 @@
-"""Running a batch on a Dask distributed cluster (``mcfit DIR --dask ADDRESS``).
+"""Running a batch on a Dask distributed cluster (``dask=ADDRESS``).
 
-Each file is the same job as with ``--jobs`` (:func:`mcfit.batch._job`), submitted to the
+Each file is the same job as with ``jobs`` (:func:`mcfit.batch._job`), submitted to the
 cluster's scheduler; the results come back in input order, each as soon as it and the
 files before it are done. Only a few tasks per worker thread are in flight at a time, so
 that a million files are not all submitted at once. ``distributed`` is imported here
-only, when --dask is given: it is an optional extra (``pip install 'mcfit[dask]'``).
+only, when ``dask`` is given: it is an optional extra (``pip install 'mcfit[dask]'``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from mcfit.errors import McfitError, UsageError
 
 __all__ = ["run_jobs", "DaskBatch"]
 
-INSTALL_HINT = "--dask needs the dask extra: pip install 'mcfit[dask]'"
+INSTALL_HINT = "`dask` needs the dask extra: pip install 'mcfit[dask]'"
 TASKS_PER_THREAD = 4  # in flight per worker thread: each is busy while its next one waits
 MIN_IN_FLIGHT = 8  # while the cluster has few workers, or none yet
 RECOUNT_SECONDS = 10.0  # how often the cluster's threads are counted again (it may grow)
@@ -60,8 +60,8 @@ def _connect(address):
 
 
 def _scheduler_address(text):
-    """The address given, or the one in a scheduler file (``dask scheduler
-    --scheduler-file``), checked here: given a malformed one, distributed's Client hangs
+    """The address given, or the one in a scheduler file (the one ``dask scheduler``
+    writes where told to), checked here: given a malformed one, distributed's Client hangs
     for a minute when it is collected."""
     from distributed.comm import get_address_host_port
 
@@ -75,9 +75,9 @@ def _scheduler_address(text):
     try:
         get_address_host_port(address)
     except (ValueError, TypeError):
-        raise UsageError(f"--dask {text} is not a scheduler's address or scheduler file; "
-                         "give e.g. tcp://HOST:8786, or the file written by dask scheduler "
-                         "--scheduler-file.") from None
+        raise UsageError(f"`dask={text}` is not a scheduler's address or scheduler file; "
+                         "give e.g. tcp://HOST:8786, or the scheduler file that dask scheduler "
+                         "writes.") from None
     return address
 
 
@@ -100,7 +100,7 @@ def _check_workers(client, paths):
     here = os.getcwd()
     elsewhere = sorted(set(client.run(os.getcwd).values()) - {here})
     if elsewhere:
-        raise UsageError(f"--dask: the workers run in {elsewhere[0]}, not in {here}, and "
+        raise UsageError(f"`dask`: the workers run in {elsewhere[0]}, not in {here}, and "
                          f"would not find {relative[0]}; give absolute paths, or start the "
                          "workers in this directory.")
 

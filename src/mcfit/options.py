@@ -50,7 +50,7 @@ FLAGS = {
     "bootstrap": "--bootstrap", "seed": "--seed", "method": "--method",
     "pendulum": "--pendulum", "degrees": "--degrees", "start": "--start", "end": "--end",
     "unit": "--unit", "title": "--title", "panels": "--panels", "figsize": "--figsize",
-    "dpi": "--dpi", "jobs": "--jobs",
+    "dpi": "--dpi", "jobs": "--jobs", "dask": "--dask",
 }
 _MARKED = re.compile(r"`([a-z_]+)(?:=([^`\s]*))?`")
 
