@@ -462,3 +462,26 @@ def test_a_single_regime_fit_off_the_amplitude_scale_is_named():
     assert "Coulomb only (c) off scale" in _note(axes)
     labels = {t.get_text() for t in axes.get_legend().get_texts()}
     assert "Coulomb only (c)" not in labels and "fluid only (a)" in labels
+
+
+def test_a_waveform_fit_shows_its_turning_points_against_its_law_in_percent():
+    """A waveform fit fitted the samples: the strip under the amplitudes gives the turning
+    points' gap from its law in percent (a crest of exp(-0.8 t) cos(2 pi t) stands
+    1 - cos(atan(0.8/omega_d)) = 0.82 % below the envelope) and says it was not fitted,
+    with the word for b the damping form gives."""
+    from mcfit.io import Record
+
+    t = np.arange(0.0, 6.0, 1 / 400)
+    x = np.exp(-0.8 * t) * np.cos(2 * np.pi * t)
+    x = x + 1e-4 * np.random.default_rng(3).standard_normal(t.size)
+    analysis = analyse_record(Record(source="viscous", t=t, x=x))
+    assert analysis.fit.method == "waveform" and analysis.fit.damping_form == "velocity"
+    figure = analysis.figure()
+    strip = next(a for a in figure.axes if a.get_ylabel() == "point - law (%)")
+    gap = strip.lines[-1].get_ydata()
+    omega_d = math.sqrt((2 * np.pi) ** 2 - 0.8**2)
+    assert np.median(gap) == pytest.approx(-100 * (1 - math.cos(math.atan(0.8 / omega_d))),
+                                           abs=0.1)
+    assert any("not fitted: the waveform was" in text.get_text() for text in strip.texts)
+    box = "\n".join(text.get_text() for a in figure.axes for text in a.texts)
+    assert "viscous damping" in box and "hysteretic" not in box

@@ -10,7 +10,7 @@ import math
 import statistics
 from collections import Counter
 
-from mcfit.fit.models import NONE, POWER, REGIME_NAMES, TERMS
+from mcfit.fit.models import NONE, POWER, REGIME_NAMES, TERMS, regime_name
 from mcfit.record import coefficient_units
 
 __all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS", "csv_columns",
@@ -138,17 +138,8 @@ def _short(value):
     return f"{mantissa}e{int(exponent)}" if exponent else mantissa
 
 
-_B_NAMES = {"velocity": "viscous", "cannot tell": "viscous or hysteretic"}
-
-
-def _b_name(form):
-    """What b is called: viscous where the velocity forms were fitted, either where the
-    record cannot tell the forms apart, else hysteretic."""
-    return _B_NAMES.get(form, REGIME_NAMES["b"])
-
-
 def _regime_name(term, data):
-    return _b_name(data.get("damping_form")) if term == "b" else REGIME_NAMES[term]
+    return regime_name(term, data.get("damping_form"))
 
 
 def _damping_form_lines(data) -> list[str]:
@@ -302,7 +293,7 @@ def to_text(data) -> str:
     t0 = _g(data["t0"], ".4g")
     at = f"{t0} s" if domain == "time" else f"n = {t0}"
     labels = {"y0": f"y0 (amplitude at {at})",
-              "a": "a (fluid)", "b": f"b ({_b_name(data.get('damping_form'))})",
+              "a": "a (fluid)", "b": f"b ({regime_name('b', data.get('damping_form'))})",
               "c": "c (Coulomb)"}
     units = data["coefficient_units"]
     for k in ("y0",) if data["model"] == POWER else ("y0", "a", "b", "c"):

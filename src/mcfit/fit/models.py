@@ -12,7 +12,7 @@ import itertools
 from mcfit.options import CRITERIA, parse_model
 
 __all__ = ["TERMS", "NONE", "POWER", "MODELS", "REGIME_NAMES", "CRITERIA", "terms_of",
-           "parse_model", "regime_list", "models_to_fit"]
+           "parse_model", "regime_list", "regime_name", "models_to_fit"]
 
 TERMS = ("a", "b", "c")
 NONE = "none"  # constant amplitude: no damping
@@ -21,11 +21,20 @@ POWER = "power"  # dy/dt = -k*y**n, fitted only when asked for
 MODELS = (NONE,) + tuple("".join(s) for n in (1, 2, 3)
                          for s in itertools.combinations(TERMS, n))
 REGIME_NAMES = {"a": "fluid", "b": "hysteretic", "c": "coulomb"}
+# b's name by the form of the damping forces a waveform fit found (mcfit.fit.waveform).
+_B_NAMES = {"velocity": "viscous", "cannot tell": "viscous or hysteretic"}
 
 
 def terms_of(model: str) -> str:
     """The letters of the terms a model keeps ("" for ``"none"``)."""
     return "" if model == NONE else model
+
+
+def regime_name(term, damping_form=None) -> str:
+    """A term's regime: b is viscous where the velocity forms were fitted, either where the
+    record cannot tell the forms apart, else hysteretic (``damping_form`` None: no
+    waveform fit)."""
+    return _B_NAMES.get(damping_form, REGIME_NAMES["b"]) if term == "b" else REGIME_NAMES[term]
 
 
 def regime_list(terms) -> str:

@@ -92,11 +92,26 @@ def draw_amplitudes(axes, axes_residual, view, fit):
     off_scale_note(axes, curves=hidden)
     axes.tick_params(labelbottom=False)
     place_legend(axes)
-    residuals = (fit.y - fit.y_fit) / fit.sigma
-    axes_residual.axhline(0.0, color="k", lw=0.6)
-    axes_residual.plot(fit.t, residuals, ls="none", marker="o", ms=2.5, color=DATA["color"])
-    axes_residual.set_xlabel(view.time_label)
-    axes_residual.set_ylabel("residual / sigma")
+    _draw_residuals(axes_residual, view, fit)
+
+
+def _draw_residuals(axes, view, fit):
+    """The turning points' residuals in their sigmas; for a waveform fit, which fitted the
+    samples and not these points, their difference from its law in percent, and a word
+    on the samples' fit (a crest of a fast decay is not its envelope: in sigmas of the
+    turning points that gap reads as a misfit)."""
+    waveform = getattr(fit, "method", None) == "waveform"
+    with np.errstate(divide="ignore", invalid="ignore"):
+        residuals = (100.0 * (fit.y - fit.y_fit) / fit.y_fit if waveform
+                     else (fit.y - fit.y_fit) / fit.sigma)
+    axes.axhline(0.0, color="k", lw=0.6)
+    axes.plot(fit.t, residuals, ls="none", marker="o", ms=2.5, color=DATA["color"])
+    axes.set_xlabel(view.time_label)
+    axes.set_ylabel("point - law (%)" if waveform else "residual / sigma")
+    if waveform:
+        axes.text(0.99, 0.04, f"not fitted: the waveform was ({fit.n_points} samples, "
+                  f"reduced chi-square {fit.reduced_chi_square:.3g})", ha="right",
+                  va="bottom", fontsize=7, color="0.35", transform=axes.transAxes)
 
 
 def draw_q(axes, view, fit):

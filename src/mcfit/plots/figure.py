@@ -7,7 +7,8 @@ from pathlib import Path
 from matplotlib.figure import Figure
 
 from mcfit.files import replace_atomically, temporary_beside
-from mcfit.fit import NONE, POWER, REGIME_NAMES, TERMS, DecayFit, PowerLawFit
+from mcfit.fit import NONE, POWER, TERMS, DecayFit, PowerLawFit
+from mcfit.fit.models import regime_name
 from mcfit.options import DEFAULT_PANELS, check_plot_name, parse_figsize, parse_panels
 from mcfit.plots.against_amplitude import draw_backbone, draw_q_amplitude, draw_rate
 from mcfit.plots.against_time import draw_amplitudes, draw_q, draw_record
@@ -90,7 +91,8 @@ def _verdict(fit) -> str:
         return "power-law damping"
     if fit.model == NONE:
         return "no damping detected"
-    kept = ", ".join(REGIME_NAMES[k] for k in fit.model).replace("coulomb", "Coulomb")
+    form = getattr(fit, "damping_form", None)  # a waveform fit's
+    kept = ", ".join(regime_name(k, form) for k in fit.model).replace("coulomb", "Coulomb")
     return f"{kept} damping" if fit.resolved else "damping (regime not resolved: constant Q)"
 
 
