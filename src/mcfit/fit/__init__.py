@@ -6,12 +6,16 @@ Each step lives in one module:
 - :mod:`~mcfit.fit.models`: the candidate models and their names (no numerical imports);
 - :mod:`~mcfit.fit.problem`: internal units and one model's least-squares problem;
 - :mod:`~mcfit.fit.candidates`: the candidate fits, and the reported one with lmfit;
+- :mod:`~mcfit.fit.reported`: the reported fit of any law (:class:`~mcfit.fit.reported.Law`);
 - :mod:`~mcfit.fit.selection`: the selection rule, :func:`select_model`;
 - :mod:`~mcfit.fit.uncertainty`: covariance, Q with its error, lower bound, bootstrap;
+- :mod:`~mcfit.fit.diagnostics`: the warnings every fit carries;
 - :mod:`~mcfit.fit.power`: the free power law, :class:`PowerLawFit`;
 - :mod:`~mcfit.fit.decay_fit`: :func:`fit_decay`, which runs them in turn.
 - :mod:`~mcfit.fit.pendulum`: :func:`fit_pendulum`, the same for a pendulum's swing angle
   at large amplitudes (the sin(theta) geometry, THEORY.md section 8).
+- :mod:`~mcfit.fit.waveform_laws` and :mod:`~mcfit.fit.waveform`: the record x(t) itself
+  by the equation of motion, each form of the damping a law, and its fit.
 
 numpy/scipy/lmfit only, no I/O. The names below are loaded when first used, so that
 ``mcfit.fit.models`` can be imported without the numerical stack.
