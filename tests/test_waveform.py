@@ -177,6 +177,14 @@ def test_waveform_candidates_and_verdict():
     assert 0.7 < fit.reduced_chi_square < 1.4
 
 
+def test_a_model_no_waveform_form_has_is_an_error_of_the_few_swings_record_not_a_crash():
+    t, x, _ = _low_q_record(3, 0.0, 2, 0)
+    record = Record(source="few", t=t, x=x)
+    assert analyse_record(record).fit.method == "waveform"
+    analysis = analyse_record(record, model="power")
+    assert analysis.status == "error" and "turning points" in analysis.error
+
+
 def test_bootstrap_asked_for_is_not_dropped_silently_when_the_waveform_is_reported():
     t, x, _ = _low_q_record(3, 0.0, 8, 1)
     record = Record(source="q3", t=t, x=x)

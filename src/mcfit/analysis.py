@@ -404,9 +404,9 @@ def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     fits = {form: fit_waveform(t, x, turning, start, criterion=criterion, forced=forced,
                                form=form)
             for form, (_, offered) in FORMS.items() if forced is None or forced in offered}
-    if len(fits) == 1:
-        (form, only), = fits.items()
-        return replace(only, damping_form_reason="the only form with the model asked for")
+    if not fits:
+        raise FitError(f"no form of the waveform fit has the model {forced!r}",
+                       option="model")
     scores = {form: _selected(fit).aicc for form, fit in fits.items()}
     best, other = sorted(scores, key=scores.get)
     gap = scores[other] - scores[best]

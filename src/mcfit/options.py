@@ -134,8 +134,9 @@ def check_fit_options(*, criterion="aicc", model=None, bootstrap=0, method="auto
         raise UsageError("`bootstrap` is not available with `pendulum` yet.",
                          option="bootstrap")
     if pendulum and method != "auto":
-        raise UsageError("`method` is not available with `pendulum`: the pendulum's law is "
-                         "fitted to the turning points.", option="method")
+        raise UsageError("`method` is not available with `pendulum`: the pendulum's fit "
+                         "chooses between its law on the turning points and its equation of "
+                         "motion itself.", option="method")
     if pendulum and model == "power":
         raise UsageError("`model=power` is not available with `pendulum`.", option="model")
     for name, value in (("start", start), ("end", end)):

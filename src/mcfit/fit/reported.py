@@ -50,12 +50,6 @@ class Solution:
     success: bool
     evaluations: int
 
-    @property
-    def errors(self) -> np.ndarray | None:
-        if self.covariance is None:
-            return None
-        return np.sqrt(np.maximum(np.diag(self.covariance), 0.0))
-
 
 def solve_reported(law: Law, params: lmfit.Parameters) -> Solution:
     """lmfit's fit of ``law`` from ``params`` (named as ``law.free``, with their bounds):

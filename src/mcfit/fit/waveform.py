@@ -20,7 +20,9 @@ at order 1/Q; :data:`FORMS` lists them, each form's model and Jacobian a law of
 
 from __future__ import annotations
 
+import functools
 import math
+import threading
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -108,9 +110,34 @@ class WaveformStart:
 FORMS = {"amplitude": (AmplitudeWaveform, MODELS), "velocity": (velocity_waveform, MODELS)}
 
 
-# BLAS on one thread: the solver's SVD of a 10^4 x 8 Jacobian took six times the CPU on
-# two threads as on one (the threads spin), and a batch already runs a record per core.
-_ONE_BLAS_THREAD = threadpool_limits.wrap(limits=1, user_api="blas")
+class _OneBlasThread:
+    """BLAS on one thread while any thread of the process runs a waveform fit: the
+    solver's SVD of a 10^4 x 8 Jacobian took six times the CPU on two threads as on one
+    (the threads spin), and a batch already runs a record per core. The limit is the
+    process's, so it is set by the first fit in and restored by the last one out."""
+
+    def __init__(self):
+        self._lock, self._inside, self._limits = threading.Lock(), 0, None
+
+    def __call__(self, function):
+        @functools.wraps(function)
+        def limited(*args, **kwargs):
+            with self._lock:
+                if self._inside == 0:
+                    self._limits = threadpool_limits(limits=1, user_api="blas")
+                self._inside += 1
+            try:
+                return function(*args, **kwargs)
+            finally:
+                with self._lock:
+                    self._inside -= 1
+                    if self._inside == 0:
+                        self._limits.restore_original_limits()
+
+        return limited
+
+
+_ONE_BLAS_THREAD = _OneBlasThread()
 
 
 @_ONE_BLAS_THREAD
@@ -181,7 +208,7 @@ def _fitted_candidates(waveforms, vectors, models, likely, forced):
                 waveforms[model], vectors[model], _TOLERANCES if model in likely else _SCREENING)
     best = min(c.aicc for c in candidates.values())
     for model in solutions:
-        if model not in likely and (candidates[model].aicc - best <= _CONTENTION
+        if model != largest and model not in likely and (candidates[model].aicc - best <= _CONTENTION
                                     or model == forced):
             candidates[model], solutions[model] = _ranked(
                 waveforms[model], solutions[model].x, _TOLERANCES, solutions[model].nfev)
@@ -191,29 +218,26 @@ def _fitted_candidates(waveforms, vectors, models, likely, forced):
 def _far_candidates(largest, solution, vectors, models):
     """The ``models`` nested in the fitted ``largest`` whose AICc is beyond
     ``_CONTENTION`` above its own by the Wald statistic of the terms they drop (the
-    chi-square rise of a quadratic approximation, with the covariance scaled by the
-    reduced chi-square where above 1): their chi-square is estimated so, not fitted.
-    The approximation is off by far less than the margin between ``_CONTENTION`` and
-    the selection's thresholds (about 10)."""
+    chi-square rise of a quadratic approximation, residuals in noise units): their
+    chi-square is estimated so, not fitted. Against fitting them the estimate is off by a
+    factor of about 1.2 at any misfit, far less than the margin between ``_CONTENTION``
+    and the selection's thresholds (about 10)."""
     if not solution.success:
         return {}
     terms, n = largest.terms, solution.fun.size
-    jacobian = solution.jac
-    reduced = max(largest.chi_square / max(n - largest.n_params, 1), 1.0)
-    covariance = np.linalg.pinv(jacobian.T @ jacobian) * reduced
+    covariance = np.linalg.pinv(solution.jac.T @ solution.jac)
     far = {}
     for model in models:
         dropped = [5 + terms.index(k) for k in terms if k not in terms_of(model)]
         theta = solution.x[dropped]
         rise = float(theta @ np.linalg.pinv(covariance[np.ix_(dropped, dropped)]) @ theta)
         n_params = largest.n_params - len(dropped)
-        chi_square = largest.chi_square + rise
-        aicc, bic = information_criteria(chi_square, n, n_params)
+        aicc, bic = information_criteria(largest.chi_square + rise, n, n_params)
         if aicc - largest.aicc > _CONTENTION:
             values = {"y0": float(vectors[model][0]), "a": 0.0, "b": 0.0, "c": 0.0}
             values.update({k: float(v) for k, v in zip(terms_of(model), vectors[model][5:])})
-            far[model] = Candidate(model, n_params, chi_square, aicc, bic, True, values, 0,
-                                   internal=vectors[model], estimated=True)
+            far[model] = Candidate(model, n_params, largest.chi_square + rise, aicc, bic, True,
+                                   values, 0, internal=vectors[model], estimated=True)
     return far
 
 
