@@ -44,37 +44,3 @@ def test_the_velocity_forms_residuals_are_the_closed_form():
     expected = viscous_motion(tau, 1.2, 0.4, OMEGA, 0.4, 0.02) + 0.01 + 0.002 * tau
     np.testing.assert_allclose(form.residual(p), (expected - x) / 2e-3, rtol=1e-12,
                                atol=1e-9)
-
-
-def test_blas_stays_on_one_thread_while_any_fit_runs_and_is_restored_after():
-    """The limit is the process's: with two fits overlapping in threads, the first one out
-    must not restore BLAS's threads under the other, nor the last one leave them at 1."""
-    import threading
-
-    from threadpoolctl import threadpool_info
-
-    from mcfit.fit import waveform
-
-    def blas_threads():
-        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
-
-    before = blas_threads()
-    entered = [threading.Event(), threading.Event()]
-    leave = [threading.Event(), threading.Event()]
-
-    @waveform._ONE_BLAS_THREAD
-    def fit(i):
-        entered[i].set()
-        leave[i].wait(10)
-
-    threads = [threading.Thread(target=fit, args=(i,)) for i in range(2)]
-    threads[0].start()
-    entered[0].wait(10)
-    threads[1].start()
-    entered[1].wait(10)
-    leave[0].set()
-    threads[0].join(10)
-    assert set(blas_threads()) <= {1}  # the second fit still runs
-    leave[1].set()
-    threads[1].join(10)
-    assert blas_threads() == before

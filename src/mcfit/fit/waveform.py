@@ -20,15 +20,12 @@ at order 1/Q; :data:`FORMS` lists them, each form's model and Jacobian a law of
 
 from __future__ import annotations
 
-import functools
 import math
-import threading
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import fft, optimize
 from scipy.stats import median_abs_deviation  # lmfit imports scipy.stats anyway
-from threadpoolctl import threadpool_limits
 
 from mcfit import decay
 from mcfit.errors import FitError
@@ -110,37 +107,6 @@ class WaveformStart:
 FORMS = {"amplitude": (AmplitudeWaveform, MODELS), "velocity": (velocity_waveform, MODELS)}
 
 
-class _OneBlasThread:
-    """BLAS on one thread while any thread of the process runs a waveform fit: the
-    solver's SVD of a 10^4 x 8 Jacobian took six times the CPU on two threads as on one
-    (the threads spin), and a batch already runs a record per core. The limit is the
-    process's, so it is set by the first fit in and restored by the last one out."""
-
-    def __init__(self):
-        self._lock, self._inside, self._limits = threading.Lock(), 0, None
-
-    def __call__(self, function):
-        @functools.wraps(function)
-        def limited(*args, **kwargs):
-            with self._lock:
-                if self._inside == 0:
-                    self._limits = threadpool_limits(limits=1, user_api="blas")
-                self._inside += 1
-            try:
-                return function(*args, **kwargs)
-            finally:
-                with self._lock:
-                    self._inside -= 1
-                    if self._inside == 0:
-                        self._limits.restore_original_limits()
-
-        return limited
-
-
-_ONE_BLAS_THREAD = _OneBlasThread()
-
-
-@_ONE_BLAS_THREAD
 def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
                  forced=None, form="amplitude", kind=None):
     """Fit the samples between the first and the last used turning point by the equation
@@ -316,7 +282,6 @@ def _likely(scores, models):
         set(models) - set(scores))
 
 
-@_ONE_BLAS_THREAD
 def fit_candidate(waveform, start):
     """One model's waveform fitted from ``start`` to full tolerance: (its
     :class:`mcfit.fit.candidates.Candidate`, scipy's result)."""
