@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcfit.bench.config import QUICK, BenchConfig
-from mcfit.bench.throughput import Target
+from mcfit.bench.throughput import Target, load_lines
 from mcfit.bench.timing import ONE_THREAD, child_environment, mcfit_command, run_child
 
 __all__ = ["CycleRow", "CycleCost", "QUICK_CYCLES", "FULL_CYCLES", "ringdown",
@@ -233,12 +233,8 @@ def format_cycles(result: CycleCost) -> str:
     """The targets, one line each, then the table of cost per cycle and the large run."""
     lines = [f"Cycles: issue 28's targets on the cycle count (ringdown exp(-b*t)*cos(2*pi*t) "
              f"to exp(-2), {SAMPLES_PER_CYCLE} samples a cycle, noise {NOISE:g})"]
-    for row in targets(result):
-        verdict = {True: "met", False: "NOT MET", None: "-"}[row.met]
-        lines.append(f"  {row.label:<52}{row.measured:>12}   target {row.target:<12}{verdict}")
-    if result.load is not None:
-        lines.append(f"  (load average {result.load[0]:.1f} at the start on "
-                     f"{os.cpu_count()} CPUs)")
+    lines += [row.line() for row in targets(result)]
+    lines += load_lines(result.load)
     return "\n".join(lines + ["", *_table_lines(result), "", *_large_lines(result)])
 
 

@@ -41,7 +41,7 @@ from mcfit.bench.timing import (ONE_THREAD, ChildRun, bytecode_environment,
                                 child_environment, fastest_child, fastest_in_turn,
                                 mcfit_command, peak_memory_mib)
 
-__all__ = ["Target", "CommandRate", "Throughput", "run_throughput", "format_throughput",
+__all__ = ["Target", "load_lines", "CommandRate", "Throughput", "run_throughput", "format_throughput",
            "ISSUE_FILES"]
 
 ISSUE_FILES = 200  # files of the batch target in issue 17
@@ -60,6 +60,18 @@ class Target:
     measured: str
     target: str
     met: bool | None
+
+    def line(self) -> str:
+        """The target as a line of a section's table of targets."""
+        verdict = {True: "met", False: "NOT MET", None: "-"}[self.met]
+        return f"  {self.label:<52}{self.measured:>12}   target {self.target:<12}{verdict}"
+
+
+def load_lines(load) -> list[str]:
+    """The line saying how busy the machine was at the start (none if unknown)."""
+    if load is None:
+        return []
+    return [f"  (load average {load[0]:.1f} at the start on {os.cpu_count()} CPUs)"]
 
 
 @dataclass(frozen=True)
@@ -307,17 +319,13 @@ def format_throughput(result: Throughput) -> str:
     lines = [f"Throughput: issue 17's targets on records of {config.batch_samples} samples, "
              f"{result.crests:.0f} crests on average",
              f"  ({THROUGHPUT_SCENE.name}: {THROUGHPUT_SCENE.describe()}; SNR 1e3)"]
-    for row in targets(result):
-        verdict = {True: "met", False: "NOT MET", None: "-"}[row.met]
-        lines.append(f"  {row.label:<52}{row.measured:>12}   target {row.target:<12}{verdict}")
+    lines += [row.line() for row in targets(result)]
     lines += _notes(result)
     lines.append("  (one process: CPU time where the platform reports it, as wall time on a "
                  "shared machine waits")
     lines.append("  for other users; --jobs 2 ratios: wall time; the wall times are in the "
                  "tables below)")
-    if result.load is not None:
-        lines.append(f"  (load average {result.load[0]:.1f} at the start on "
-                     f"{os.cpu_count()} CPUs)")
+    lines += load_lines(result.load)
     lines += ["", *_stage_lines(result), "", *_auto_lines(result), "",
               *_command_lines(result), "", *_startup_lines(result), "", *_large_lines(result),
               "", _memory_line(result)]

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcfit.bench.config import QUICK, BenchConfig
-from mcfit.bench.throughput import Target
+from mcfit.bench.throughput import Target, load_lines
 from mcfit.bench.timing import ONE_THREAD, child_environment
 
 __all__ = ["MIXES", "WAVEFORM_QS", "WaveformSpeed", "mixed_record", "q_record",
@@ -198,12 +198,8 @@ def format_waveform_speed(result: WaveformSpeed) -> str:
     """The targets, then the mixed batch by Q band and the waveform fit by Q."""
     lines = [f"Waveform: issue 28's targets on the default method ({len(result.mixed)} "
              f"mixed records of {SAMPLES:,} samples, {CYCLES} cycles; one core, CPU time)"]
-    for row in targets(result):
-        verdict = {True: "met", False: "NOT MET", None: "-"}[row.met]
-        lines.append(f"  {row.label:<52}{row.measured:>12}   target {row.target:<12}{verdict}")
-    if result.load is not None:
-        lines.append(f"  (load average {result.load[0]:.1f} at the start on "
-                     f"{os.cpu_count()} CPUs)")
+    lines += [row.line() for row in targets(result)]
+    lines += load_lines(result.load)
     lines += ["", f"  {'records':<24}{'n':>4}{'by waveform':>13}{'auto ms':>10}"
                   f"{'TP ms':>8}{'auto/TP':>9}"]
     bands = (("Q <= 8", lambda q: q <= LOW_Q[1] * (1 + 1e-9)),
