@@ -227,7 +227,7 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     record whose period grows with amplitude as a pendulum's does gets a warning."""
     check_fit_options(pendulum=pendulum, bootstrap=options.get("bootstrap", 0))
     used = turning.used
-    sigma = _sigma_of_used(turning)
+    sigma = turning.used_sigma()
     period = turning.period if math.isfinite(turning.period) and turning.period > 0 else None
     period_sigma = turning.period_sigma if math.isfinite(turning.period_sigma) else None
     if pendulum:
@@ -235,12 +235,6 @@ def fit_turning_points(turning: TurningPoints, *, pendulum=False, degrees=False,
     fit = fit_decay(turning.t[used], turning.y[used], sigma, period=period,
                     period_sigma=period_sigma, domain=turning.domain, **options)
     return with_large_swing_warning(fit, turning, degrees)
-
-
-def _sigma_of_used(turning):
-    """The used turning points' uncertainties, or None unless each is finite and > 0."""
-    sigma = turning.sigma[turning.used]
-    return sigma if np.all(np.isfinite(sigma)) and np.all(sigma > 0) else None
 
 
 def with_large_swing_warning(fit, turning: TurningPoints, degrees=False):
@@ -337,7 +331,7 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
     """``fit`` (the pendulum's averaged law on the turning points), or the waveform fit
     by the pendulum's equation of motion where the averaged law would be biased by more
     than a standard error (:func:`mcfit.model_error.pendulum_law_bias`) or misfits."""
-    from mcfit.fit.pendulum_waveform import PendulumWaveformFit, with_pendulum_q
+    from mcfit.fit.pendulum_waveform import PendulumWaveformFit
     from mcfit.fit.waveform_laws import PendulumWaveform
     from mcfit.fit.waveform import WaveformStart, fit_waveform
     from mcfit.model_error import pendulum_law_bias
@@ -357,12 +351,11 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
     kind = partial(PendulumWaveform, radians_per_unit=RADIANS_PER_DEGREE if degrees else 1.0)
     x = _without_steady_line(record.t, record.x, turning.steady_line)
-    waveform = PendulumWaveformFit.of(fit_waveform(
-        record.t, x, turning, WaveformStart.of_fit(fit), criterion=criterion, forced=model,
-        form="velocity", kind=kind), fit)
-    waveform = with_pendulum_q(replace(waveform, damping_form_reason=(
+    waveform = fit_waveform(record.t, x, turning, WaveformStart.of_fit(fit),
+                            criterion=criterion, forced=model, form="velocity", kind=kind)
+    waveform = PendulumWaveformFit.of(replace(waveform, damping_form_reason=(
         "the pendulum's equation of motion, with the velocity forms of the damping (viscous, "
-        "quadratic drag, sliding friction)")))
+        "quadratic drag, sliding friction)")), fit)
     return _reported_of(fit, waveform, said, "the pendulum's equation of motion", misfits)
 
 

@@ -104,14 +104,8 @@ def _fitted_values(turning, model) -> dict:
     from mcfit.fit.decay_fit import fit_model_values
 
     used = turning.used
-    return fit_model_values(turning.t[used], turning.y[used], _used_sigma(turning),
+    return fit_model_values(turning.t[used], turning.y[used], turning.used_sigma(),
                             model=model)
-
-
-def _used_sigma(turning):
-    """The used turning points' uncertainties, or None unless each is finite and > 0."""
-    sigma = turning.sigma[turning.used]
-    return sigma if np.all(np.isfinite(sigma)) and np.all(sigma > 0) else None
 
 
 def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
@@ -136,7 +130,7 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
     try:
         found = find_turning_points(times, turning.equilibrium_at(times) + swing / s,
                                     settle_noise=_positive(turning.noise_sigma))
-        again = fit_turning_points_of_pendulum(found, _used_sigma(found), degrees,
+        again = fit_turning_points_of_pendulum(found, found.used_sigma(), degrees,
                                                model=fit.model)
     except McfitError:
         return math.inf

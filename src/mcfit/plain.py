@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["number", "numbers", "q_summary", "candidates"]
+__all__ = ["number", "numbers", "q_summary", "candidates", "before_warnings"]
 
 _Q_KEYS = ("initial", "final", "min", "max")
 
@@ -40,3 +40,12 @@ def candidates(fitted) -> list[dict]:
              "chi_square": number(c.chi_square), "aicc": number(c.aicc),
              "bic": number(c.bic), "converged": bool(c.success),
              **({"estimated": True} if c.estimated else {})} for c in fitted]
+
+
+def before_warnings(out: dict, entries: dict) -> dict:
+    """A result's dict ``out`` with ``entries`` added before its warnings, which stay last
+    (a subclass's ``to_dict`` adds its own keys so)."""
+    warnings = out.pop("warnings")
+    out.update(entries)
+    out["warnings"] = warnings
+    return out

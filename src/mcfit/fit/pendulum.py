@@ -264,13 +264,10 @@ def with_pendulum_entry(out, fit) -> dict:
     before its warnings."""
     from mcfit import plain
 
-    warnings = out.pop("warnings")  # kept last
-    out["pendulum"] = {
+    return plain.before_warnings(out, {"pendulum": {
         "angle_unit": fit.angle_unit,
         "small_angle_period": plain.number(fit.small_angle_period),
-        "small_angle_period_stderr": plain.number(fit.small_angle_period_stderr)}
-    out["warnings"] = warnings
-    return out
+        "small_angle_period_stderr": plain.number(fit.small_angle_period_stderr)}})
 
 
 def fit_pendulum(t, y, sigma=None, *, period=None, period_sigma=None, signs=None,

@@ -10,10 +10,11 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
-from mcfit.fit.pendulum import PendulumFit, with_pendulum_entry
+from mcfit.fit.pendulum import PendulumFit, _q_of, with_pendulum_entry
+from mcfit.fit.uncertainty import summarise_q
 from mcfit.fit.waveform import WaveformFit
 
-__all__ = ["PendulumWaveformFit", "with_pendulum_q"]
+__all__ = ["PendulumWaveformFit"]
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # DecayFit's short repr
@@ -32,30 +33,28 @@ class PendulumWaveformFit(WaveformFit):
     @classmethod
     def of(cls, waveform, pendulum_fit):
         """``waveform`` (a :class:`WaveformFit`) with ``pendulum_fit``'s angle unit and T0,
-        its amplitudes at the turning points by the pendulum's law."""
+        its amplitudes at the turning points by the pendulum's law and Q(t) the energy's
+        (:func:`_energy_q`)."""
         fit = cls(**{f.name: getattr(waveform, f.name) for f in fields(WaveformFit)},
                   small_angle_period=pendulum_fit.small_angle_period,
                   small_angle_period_stderr=pendulum_fit.small_angle_period_stderr,
                   angle_unit=pendulum_fit.angle_unit)
-        return replace(fit, y_fit=fit.amplitude(fit.t))
+        y_fit = fit.amplitude(fit.t)
+        return replace(fit, y_fit=y_fit, **_energy_q(fit, y_fit))
 
     def to_dict(self) -> dict:
         return with_pendulum_entry(super().to_dict(), self)
 
 
-def with_pendulum_q(fit):
-    """``fit`` with its amplitudes by the pendulum's law and Q(t) the energy's (THEORY.md
-    section 8), as the pendulum's law reports them; Q's relative errors are those of the
-    small-angle Q it replaces (both scale as 1/rate)."""
-    from mcfit.fit.pendulum import _q_of  # noqa: PLC0415
-    from mcfit.fit.uncertainty import summarise_q  # noqa: PLC0415
-
+def _energy_q(fit, y_fit) -> dict:
+    """Q(t) the energy's (THEORY.md section 8) at the amplitudes ``y_fit``, as the
+    pendulum's law reports it, in place of ``fit``'s small-angle Q; Q's relative errors are
+    those of the small-angle Q (both scale as 1/rate). Nothing where there is no Q."""
     if fit.q is None:
-        return fit
-    y_fit = fit.amplitude(fit.t)
+        return {}
     s, v = fit.radians_per_unit, fit.values
     q, parts = _q_of(y_fit * s, np.array([v["c"] * s, v["b"], v["a"] / s]),
                      2 * math.pi / fit.omega)
     q_stderr = None if fit.q_stderr is None else q * fit.q_stderr / fit.q
-    return replace(fit, y_fit=y_fit, q=q, q_stderr=q_stderr, q_summary=summarise_q(q, q_stderr),
-                   q_parts={"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]})
+    return {"q": q, "q_stderr": q_stderr, "q_summary": summarise_q(q, q_stderr),
+            "q_parts": {"coulomb": parts[0], "hysteretic": parts[1], "fluid": parts[2]}}

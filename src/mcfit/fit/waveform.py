@@ -68,15 +68,11 @@ class WaveformFit(DecayFit):
         """:meth:`DecayFit.to_dict` with the damping form and the forces' coefficients."""
         from mcfit import plain
 
-        out = super().to_dict()
-        warnings = out.pop("warnings")
-        out["damping_form"] = self.damping_form
-        out["damping_form_reason"] = self.damping_form_reason
-        out["physical"] = {name: {**entry, "value": plain.number(entry["value"]),
-                                  "stderr": plain.number(entry["stderr"])}
-                           for name, entry in self.physical.items()}
-        out["warnings"] = warnings
-        return out
+        return plain.before_warnings(super().to_dict(), {
+            "damping_form": self.damping_form, "damping_form_reason": self.damping_form_reason,
+            "physical": {name: {**entry, "value": plain.number(entry["value"]),
+                                "stderr": plain.number(entry["stderr"])}
+                         for name, entry in self.physical.items()}})
 
 
 @dataclass(frozen=True)

@@ -93,6 +93,12 @@ class TurningPoints:
         ``equilibrium_drift`` per time unit."""
         return self.equilibrium + self.equilibrium_drift * (np.asarray(t) - self.t_start)
 
+    def used_sigma(self):
+        """The used turning points' uncertainties, or None unless each is finite and > 0
+        (then a fit takes its noise scale from the residuals alone)."""
+        sigma = self.sigma[self.used]
+        return sigma if np.all(np.isfinite(sigma)) and np.all(sigma > 0) else None
+
     @property
     def count(self):
         """Number of used turning points."""
