@@ -382,41 +382,42 @@ def _waveform_fit(record, turning, fit, criterion, model):
         "which is not reported: the waveform fit's intervals are from its covariance",))
 
 
-# Selected models of the two forms whose AICc differ by no more than this cannot be told
-# apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
-FORM_TIE = 10.0
-
-
 def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     """The waveform fit in the form of the damping forces the record supports: Eq. 20.55's
     amplitude forms or the velocity forms (:data:`mcfit.fit.waveform.FORMS`), by the AICc
     of the model each selects; ``damping_form`` is "cannot tell" within
-    :data:`FORM_TIE`, and the lower one is reported."""
-    from mcfit.fit.waveform import FORMS, fit_waveform
+    :data:`mcfit.fit.waveform.FORM_TIE`, and the lower one is reported. The second form
+    starts from the first's choice and stops where it cannot come within the tie."""
+    from mcfit.fit.waveform import FORM_TIE, FORMS, rank_form, report_form
 
-    fits = {form: fit_waveform(t, x, turning, start, criterion=criterion, forced=forced,
-                               form=form)
-            for form, (_, offered) in FORMS.items() if forced is None or forced in offered}
-    if not fits:
+    ranked = {}
+    for form, (_, offered) in FORMS.items():
+        if forced is None or forced in offered:
+            ranked[form] = rank_form(t, x, turning, start, criterion=criterion,
+                                     forced=forced, form=form,
+                                     rival=next(iter(ranked.values()), None))
+    if not ranked:
         raise FitError(f"no form of the waveform fit has the model {forced!r}",
                        option="model")
-    scores = {form: _selected(fit).aicc for form, fit in fits.items()}
+    scores = {form: r.aicc for form, r in ranked.items()}
     best, other = sorted(scores, key=scores.get)
     gap = scores[other] - scores[best]
+    fit = report_form(ranked[best], start)
     names = {"amplitude": "Eq. 20.55's amplitude forms", "velocity": "the velocity forms "
              "(viscous, quadratic drag, sliding friction)"}
-    if set(terms_of(fits[best].model)) <= {"c"}:
-        return replace(fits[best], damping_form="cannot tell", damping_form_reason=(
+    if set(terms_of(fit.model)) <= {"c"}:
+        return replace(fit, damping_form="cannot tell", damping_form_reason=(
             f"{names[best]} fit the waveform best, but sliding friction has one form only: "
             f"the coefficients are those of {names[best]}"))
     if gap <= FORM_TIE:
-        return replace(fits[best], damping_form="cannot tell", damping_form_reason=(
+        return replace(fit, damping_form="cannot tell", damping_form_reason=(
             f"{names[best]} and {names[other]} fit the waveform equally well (AICc "
             f"{gap:.3g} apart): the coefficients of the averaged law are those of "
             f"{names[best]}"))
-    return replace(fits[best], damping_form_reason=(
+    about = "about " if ranked[other].candidates[ranked[other].selection.model].estimated else ""
+    return replace(fit, damping_form_reason=(
         f"{names[best]} fit the waveform better than {names[other]} (AICc lower by "
-        f"{gap:.3g})"))
+        f"{about}{gap:.3g})"))
 
 
 def _selected(fit):

@@ -34,8 +34,8 @@ def q_summary(summary, lower_bound=None) -> dict:
 
 
 def candidates(fitted) -> list[dict]:
-    """The candidate models' scores (:class:`mcfit.fit.Candidate` each); a candidate far
-    from contention whose chi-square was estimated, not fitted, says so."""
+    """The candidate models' scores (:class:`mcfit.fit.Candidate` each); a candidate
+    whose chi-square was estimated, not fitted (it cannot change the choice), says so."""
     return [{"model": c.model, "n_params": int(c.n_params),
              "chi_square": number(c.chi_square), "aicc": number(c.aicc),
              "bic": number(c.bic), "converged": bool(c.success),

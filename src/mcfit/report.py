@@ -246,7 +246,7 @@ def _candidates_line(data) -> str | None:
                        for c in ranked)
     estimated = any(c.get("estimated") for c in ranked)
     return (f"  candidates:      delta {criterion.upper()}: {scores}"
-            + (" (~ estimated, far from contention)" if estimated else ""))
+            + (" (~ estimated, not fitted: it cannot change the choice)" if estimated else ""))
 
 
 def to_text(data) -> str:

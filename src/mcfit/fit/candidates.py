@@ -57,7 +57,8 @@ class Candidate:
     internal: np.ndarray = field(default=None, repr=False, compare=False)
     # The chi-square gradient at ``internal`` where the ranking computed it (see _gradient).
     gradient: np.ndarray = field(default=None, repr=False, compare=False)
-    # Far from contention, its chi-square estimated from a larger model's fit, not fitted.
+    # Its chi-square estimated from another model's fit, not fitted (it cannot change the
+    # choice; mcfit.fit.waveform).
     estimated: bool = False
 
     @property

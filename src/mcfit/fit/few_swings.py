@@ -106,7 +106,7 @@ def _start_fit(times, amplitudes, omega, beta):
     """The waveform fit's start: every candidate model from the damped cosine's y0 and b
     (the other terms 0)."""
     values = {"y0": float(amplitudes[0]), "a": 0.0, "b": float(beta), "c": 0.0}
-    return WaveformStart({m: dict(values) for m in MODELS}, dict.fromkeys(MODELS, 0.0), "b",
+    return WaveformStart({m: dict(values) for m in MODELS}, "b",
                          float(omega), times, amplitudes, np.full(times.size, np.nan))
 
 

@@ -32,24 +32,27 @@ from mcfit.errors import FitError
 from mcfit.fit import uncertainty
 from mcfit.fit.candidates import Candidate, information_criteria
 from mcfit.fit.decay_fit import DecayFit
-from mcfit.fit.diagnostics import fit_warnings
+from mcfit.fit.diagnostics import fit_warnings, misfit_warning
 from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
 from mcfit.fit.reported import lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
-from mcfit.fit.waveform_laws import AmplitudeWaveform, velocity_waveform
+from mcfit.fit.waveform_laws import NUISANCE, AmplitudeWaveform, velocity_waveform
 from mcfit.viscous_motion import coulomb_force
 
-__all__ = ["FORMS", "WaveformFit", "WaveformStart", "fit_waveform", "fit_candidate"]
+__all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
+           "rank_form", "report_form", "fit_candidate"]
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
-# A candidate far from contention is fitted only until chi-square falls by less than this
-# share in a step (within about 1e-5 of converged, in a third of the steps).
-_SCREENING = {**_TOLERANCES, "ftol": 1e-6}
-# Far from contention: AICc above the best by more than this. The selection's ties are
-# within 2 and its tests reject a term for a chi-square drop of about 10.
-_CONTENTION = 1000.0
-# The turning-point fit's AICc within this of its best: likely in contention (fitted to
-# full tolerance at once; the others are screened first).
-_LIKELY = 20.0
+# A candidate is estimated from the best fitted one (the quadratic model of chi-square
+# about its solution) and fitted only where the estimate may change the choice: its AICc
+# within _DECISIVE of the best's (the selection's ties lie within 7.15 and its "near the
+# threshold" tests within 17.7, in the same units), unless it adds terms to the best that
+# lower chi-square by less than _NEGLIGIBLE (half of the 1.97 below which a test is not
+# "near the threshold"; the AICc penalty of a term is 2).
+_DECISIVE = 60.0
+# Selected models of two forms whose AICc differ by no more than this cannot be told
+# apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
+FORM_TIE = 10.0
+_NEGLIGIBLE = 1.0
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # DecayFit's short repr
@@ -77,13 +80,12 @@ class WaveformFit(DecayFit):
 
 @dataclass(frozen=True)
 class WaveformStart:
-    """Where a waveform fit starts: each model's start values (y0, a, b, c), the
-    turning-point fit's AICc of each (fitted to full tolerance at once where close to the
-    best), the model whose values start those without their own, the frequency, and the
-    turning points (times, amplitudes, sigma) at which the result gives the law's amplitude."""
+    """Where a waveform fit starts: each model's start values (y0, a, b, c), the model
+    fitted first (the turning-point fit's choice; its values start a model without its
+    own), the frequency, and the turning points (times, amplitudes, sigma) at which the
+    result gives the law's amplitude."""
 
     values: dict
-    scores: dict
     model: str
     omega: float
     t: np.ndarray = field(repr=False)
@@ -93,8 +95,7 @@ class WaveformStart:
     @classmethod
     def of_fit(cls, fit):
         """The start a turning-point :class:`DecayFit` gives."""
-        return cls({c.model: c.values for c in fit.candidates},
-                   {c.model: c.aicc for c in fit.candidates}, fit.model, fit.omega,
+        return cls({c.model: c.values for c in fit.candidates}, fit.model, fit.omega,
                    fit.t, fit.y, fit.sigma)
 
 
@@ -128,6 +129,36 @@ def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
         With ``damping_form == form``; values, errors and Q from the waveform fit,
         ``physical`` the coefficients of the forces.
     """
+    ranked = rank_form(t, x, turning, start, criterion=criterion, alpha=alpha,
+                       forced=forced, form=form, kind=kind)
+    return report_form(ranked, start)
+
+
+@dataclass(frozen=True)
+class RankedForm:
+    """One form's candidates (fitted or estimated) and the model they select, before the
+    reported fit (:func:`report_form`); ``law`` is the selected model's waveform law, and
+    ``solution`` its reported fit where the model fitted first was selected (None
+    else)."""
+
+    form: str
+    selection: object
+    candidates: dict
+    law: object = field(repr=False)
+    solution: object = field(default=None, repr=False)
+
+    @property
+    def aicc(self) -> float:
+        """The selected model's AICc."""
+        return self.candidates[self.selection.model].aicc
+
+
+def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced=None,
+              form="amplitude", kind=None, rival=None):
+    """The candidate step of :func:`fit_waveform` in ``form``. With ``rival`` (another
+    form's :class:`RankedForm`), the first model fitted is the one it selected, from its
+    values, and the step stops where no candidate can come within :data:`FORM_TIE` of
+    its AICc (the candidates are then only those fitted so far and estimates)."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
@@ -139,68 +170,143 @@ def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,
     waveforms = {model: kind(tw, xw, t0, terms_of(model), noise) for model in models}
     vectors = {model: _start_vector(starts.get(model, starts.get(start.model)), nuisance,
                                     model) for model in models}
-    candidates, solutions = _fitted_candidates(waveforms, vectors, models,
-                                               _likely(start.scores, models), forced)
+    first = forced or (start.model if start.model in models else _largest(models))
+    bar, bar_fits = None, False
+    if rival is not None:
+        first = forced or rival.selection.model
+        vectors[first] = rival.candidates[first].internal
+        bar = rival.aicc + FORM_TIE + _DECISIVE
+        bar_fits = not _misfits(rival.candidates[rival.selection.model], tw.size)
+    candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
+    candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
-    return _reported(selection, candidates, kind(tw, xw, t0, selection.terms, noise),
-                     start, form)
+    if selection.model == first:
+        return RankedForm(form, selection, candidates, waveforms[first], solution)
+    return RankedForm(form, selection, candidates, kind(tw, xw, t0, selection.terms, noise))
+
+
+def report_form(ranked, start):
+    """The reported :class:`WaveformFit` of a :class:`RankedForm`."""
+    return _reported(ranked.selection, ranked.candidates, ranked.law, start, ranked.form,
+                     ranked.solution)
+
+
+def _fitted_as_reported(waveform, start):
+    """The model fitted first, by the reported fit's solver (lmfit), as the selection is
+    most often its: (its Candidate, the :class:`mcfit.fit.reported.Solution`)."""
+    waveform.typical = _typical(start, waveform.terms)
+    waveform.bounds = _bounds(start, waveform.terms)
+    solution = solve_reported(waveform, lmfit_parameters(waveform.free, start,
+                                                         *waveform.bounds))
+    covariance = (np.full((start.size, start.size), np.nan) if solution.covariance is None
+                  else solution.covariance)
+    return _candidate(waveform, solution.x, solution.chi_square, solution.success,
+                      solution.evaluations, covariance), solution
 
 
 def _start_vector(values, nuisance, model):
     return np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
 
 
-def _fitted_candidates(waveforms, vectors, models, likely, forced):
-    """({model: Candidate}, {model: scipy's result}) for ``models``.
+def _largest(models):
+    return max(models, key=lambda m: len(terms_of(m)))
 
-    The largest model is fitted first; a smaller one whose chi-square it puts far from
-    contention (:func:`_far_candidates`) is not fitted. The ``likely`` ones are fitted to
-    full tolerance at once, the others screened first and refitted where in contention."""
-    largest = max(models, key=lambda m: len(terms_of(m)))
-    candidates, solutions = {}, {}
-    candidates[largest], solutions[largest] = _ranked(waveforms[largest], vectors[largest],
-                                                      _TOLERANCES)
-    far = _far_candidates(candidates[largest], solutions[largest], vectors,
-                          set(models) - {largest, forced})
+
+def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=False):
+    """{model: Candidate} for the models of ``waveforms``: ``first`` (a Candidate) fitted;
+    the others
+    estimated from the best fitted one (:func:`_estimates`) and fitted where the estimate
+    may change the choice (:func:`_may_matter`), again from each new best, until none
+    may. Each is fitted from its start in ``vectors``: from an estimate far from it, a
+    model with sliding friction can stop at a kink of its motion (where the swing that
+    stops changes), far above its minimum. Where the best misfits, the largest model is fitted
+    from its own start (an estimate far from a misfitting solution may miss a better one).
+    With ``bar``, the step stops where neither the best nor any estimate has an AICc
+    below it: at once where the model that sets the bar describes the record within its
+    noise (``bar_fits``: none here can do much better), else only once the best here
+    describes it or the largest model is fitted."""
+    fitted = {first.model: first}
+    top = _largest(waveforms)
+    reference = None
+    while True:
+        best = fitted[forced] if forced else min(fitted.values(), key=lambda c: c.aicc)
+        if best is reference:
+            if top in fitted or not _misfits(best, waveforms[top].t.size):
+                break
+            fitted[top] = fit_candidate(waveforms[top], vectors[top])[0]
+            continue
+        reference = best
+        estimates = _estimates(waveforms[top], best, set(waveforms) - set(fitted))
+        if (bar is not None and min([best.aicc] + [e.aicc for e in estimates.values()]) > bar
+                and (bar_fits or top in fitted or not _misfits(best, waveforms[top].t.size))):
+            break
+        for model, estimate in estimates.items():
+            if _may_matter(estimate, best, waveforms[top].t.size):
+                fitted[model] = fit_candidate(waveforms[model], vectors[model])[0]
+    return {m: fitted.get(m) or estimates[m] for m in waveforms}
+
+
+def _misfits(candidate, n_points):
+    return bool(misfit_warning(candidate.chi_square / (n_points - candidate.n_params),
+                               n_points - candidate.n_params))
+
+
+def _may_matter(estimate, best, n_points):
+    """Whether ``estimate`` may change the choice among candidates (the selection's ties,
+    tests and thresholds; see ``_DECISIVE``), ``best`` fitted to ``n_points``."""
+    if estimate.aicc - best.aicc > _DECISIVE:
+        return False
+    adds = set(best.terms) < set(estimate.terms)
+    # The likelihood-ratio statistic of the terms added, in the units of AICc.
+    statistic = n_points * math.log(best.chi_square / max(estimate.chi_square, 1e-300))
+    return not (adds and statistic < _NEGLIGIBLE)
+
+
+def _estimates(largest, best, models):
+    """{model: Candidate} for ``models``, each estimated from the fitted ``best``: the
+    chi-square of the quadratic model of the residuals about ``best``'s solution, the
+    Jacobian that of the ``largest`` waveform (every term, absent ones at 0), minimised
+    with the terms each model drops at 0 and the others >= 0 (scipy's bounded linear least
+    squares). A model whose terms change little from ``best`` is estimated closely (the
+    model is quadratic in the change); the others are only ranked."""
+    index = {k: 5 + i for i, k in enumerate(largest.terms)}
+    at = np.zeros(5 + len(largest.terms))
+    at[:5] = best.internal[:5]
+    for i, k in enumerate(best.terms):
+        at[index[k]] = best.internal[5 + i]
+    largest.typical = _typical(at, largest.terms)
+    residual = largest.residual(at)
+    orthogonal, triangle = np.linalg.qr(largest.jacobian(at))
+    projected = orthogonal.T @ residual
+    n = residual.size
+    found = {}
     for model in models:
-        if model in far:
-            candidates[model] = far[model]
-        elif model != largest:
-            candidates[model], solutions[model] = _ranked(
-                waveforms[model], vectors[model], _TOLERANCES if model in likely else _SCREENING)
-    best = min(c.aicc for c in candidates.values())
-    for model in solutions:
-        if model != largest and model not in likely and (candidates[model].aicc - best <= _CONTENTION
-                                    or model == forced):
-            candidates[model], solutions[model] = _ranked(
-                waveforms[model], solutions[model].x, _TOLERANCES, solutions[model].nfev)
-    return {m: candidates[m] for m in models}, solutions
+        free = list(range(5)) + [index[k] for k in terms_of(model)]
+        fixed = [i for i in range(at.size) if i not in free]
+        lower = np.full(len(free), -np.inf)
+        lower[5:] = -at[free[5:]]  # terms >= 0
+        target = -(projected - triangle[:, fixed] @ at[fixed])
+        step = optimize.lsq_linear(triangle[:, free], target, bounds=(lower, np.inf),
+                                   method="bvls")
+        rise = float(np.sum((triangle[:, free] @ step.x - target) ** 2)
+                     - projected @ projected)
+        found[model] = _estimated(model, at[free] + step.x, best.chi_square + rise, n,
+                                  triangle[:, free], largest.noise)
+    return found
 
 
-def _far_candidates(largest, solution, vectors, models):
-    """The ``models`` nested in the fitted ``largest`` whose AICc is beyond
-    ``_CONTENTION`` above its own by the Wald statistic of the terms they drop (the
-    chi-square rise of a quadratic approximation, residuals in noise units): their
-    chi-square is estimated so, not fitted. Against fitting them the estimate is off by a
-    factor of about 1.2 at any misfit, far less than the margin between ``_CONTENTION``
-    and the selection's thresholds (about 10)."""
-    if not solution.success:
-        return {}
-    terms, n = largest.terms, solution.fun.size
-    covariance = np.linalg.pinv(solution.jac.T @ solution.jac)
-    far = {}
-    for model in models:
-        dropped = [5 + terms.index(k) for k in terms if k not in terms_of(model)]
-        theta = solution.x[dropped]
-        rise = float(theta @ np.linalg.pinv(covariance[np.ix_(dropped, dropped)]) @ theta)
-        n_params = largest.n_params - len(dropped)
-        aicc, bic = information_criteria(largest.chi_square + rise, n, n_params)
-        if aicc - largest.aicc > _CONTENTION:
-            values = {"y0": float(vectors[model][0]), "a": 0.0, "b": 0.0, "c": 0.0}
-            values.update({k: float(v) for k, v in zip(terms_of(model), vectors[model][5:])})
-            far[model] = Candidate(model, n_params, largest.chi_square + rise, aicc, bic, True,
-                                   values, 0, internal=vectors[model], estimated=True)
-    return far
+def _estimated(model, p, chi_square, n, triangle, noise):
+    """The :class:`Candidate` of an estimate (``triangle`` the R of the Jacobian's QR in
+    its free parameters)."""
+    n_params = p.size
+    aicc, bic = information_criteria(chi_square, n, n_params)
+    values = {"y0": float(p[0]), "a": 0.0, "b": 0.0, "c": 0.0}
+    values.update({k: float(p[5 + i]) for i, k in enumerate(terms_of(model))})
+    correlation = uncertainty.term_correlations(
+        ("y0",) + NUISANCE + tuple(terms_of(model)), np.linalg.pinv(triangle.T @ triangle),
+        terms_of(model))
+    return Candidate(model, n_params, chi_square, aicc, bic, True, values, 0, correlation,
+                     p, estimated=True)
 
 
 def _window(t, x, turning, omega):
@@ -269,55 +375,44 @@ def _typical(start, terms):
     return typical
 
 
-def _likely(scores, models):
-    """The models the turning-point fit puts in contention (its AICc within ``_LIKELY``
-    of its best): fitted to full tolerance at once. Only the cost depends on this."""
-    scores = {m: score for m, score in scores.items() if m in models and math.isfinite(score)}
-    best = min(scores.values(), default=math.inf)
-    return {m for m, score in scores.items() if score - best <= _LIKELY} | (
-        set(models) - set(scores))
-
-
 def fit_candidate(waveform, start):
     """One model's waveform fitted from ``start`` to full tolerance: (its
     :class:`mcfit.fit.candidates.Candidate`, scipy's result)."""
     return _ranked(waveform, start, _TOLERANCES)
 
 
-def _ranked(waveform, start, tolerances, evaluations=0):
-    """The candidate fitted from ``start`` (a screening fit's end, which has already
-    taken ``evaluations``, keeps the bounds and steps of the first start)."""
-    if not evaluations:
-        waveform.typical = _typical(start, waveform.terms)
-        waveform.bounds = _bounds(start, waveform.terms)
+def _ranked(waveform, start, tolerances):
+    """The candidate fitted from ``start``, with the bounds and steps it sets."""
+    waveform.typical = _typical(start, waveform.terms)
+    waveform.bounds = _bounds(start, waveform.terms)
     lower, upper = waveform.bounds
     result = optimize.least_squares(waveform.residual, np.clip(start, lower, upper),
                                     jac=waveform.jacobian, bounds=(lower, upper),
-                                    method="trf", x_scale="jac",
-                                    max_nfev=max(200 - evaluations, 10), **tolerances)
-    result.nfev += evaluations
+                                    method="trf", x_scale="jac", max_nfev=200, **tolerances)
     return _candidate(waveform, result.x, float(2 * result.cost), bool(result.success),
-                      int(result.nfev), result.jac), result
+                      int(result.nfev), np.linalg.pinv(result.jac.T @ result.jac)), result
 
 
-def _candidate(waveform, p, chi_square, success, evaluations, jacobian):
+def _candidate(waveform, p, chi_square, success, evaluations, covariance):
     n_params = p.size
     aicc, bic = information_criteria(chi_square, waveform.t.size, n_params)
     values = {"y0": float(p[0]), "a": 0.0, "b": 0.0, "c": 0.0}
     values.update({k: float(p[5 + i]) for i, k in enumerate(waveform.terms)})
-    correlation = uncertainty.term_correlations(
-        waveform.free, np.linalg.pinv(jacobian.T @ jacobian), waveform.terms)
+    correlation = uncertainty.term_correlations(waveform.free, covariance, waveform.terms)
     model = "".join(waveform.terms) or NONE
     return Candidate(model, n_params, chi_square, aicc, bic, success, values, evaluations,
                      correlation, np.asarray(p), None)
 
 
-def _reported(selection, candidates, waveform, start, form):
-    """The selected model refitted with lmfit; errors, Q and warnings."""
+def _reported(selection, candidates, waveform, start, form, solution=None):
+    """The selected model's reported fit (``solution``, else refitted with lmfit from its
+    candidate); errors, Q and warnings."""
     terms, t0, names = selection.terms, waveform.t0, waveform.free
-    begin = candidates[selection.model].internal
-    waveform.typical = _typical(begin, terms)
-    solution = solve_reported(waveform, lmfit_parameters(names, begin, *_bounds(begin, terms)))
+    if solution is None:
+        begin = candidates[selection.model].internal
+        waveform.typical = _typical(begin, terms)
+        solution = solve_reported(waveform, lmfit_parameters(names, begin,
+                                                             *_bounds(begin, terms)))
     p = solution.x
     residual = waveform.residual(p)
     covariance = solution.covariance
