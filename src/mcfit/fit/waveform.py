@@ -42,6 +42,10 @@ from mcfit.viscous_motion import coulomb_force
 __all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
            "rank_form", "report_form", "fit_candidate"]
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
+# The models fitted after the first are ranked, not reported (the one selected is
+# refitted in full): fitted until chi-square falls by less than this share in a step,
+# far finer than the selection's thresholds (chi-square differences of 2 to 18).
+_RANKING = {**_TOLERANCES, "ftol": 1e-6}
 # A candidate is estimated from the best fitted one (the quadratic model of chi-square
 # about its solution) and fitted only where the estimate may change the choice: its AICc
 # within _DECISIVE of the best's (the selection's ties lie within 7.15 and its "near the
@@ -217,9 +221,10 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
     the others
     estimated from the best fitted one (:func:`_estimates`) and fitted where the estimate
     may change the choice (:func:`_may_matter`), again from each new best, until none
-    may. Each is fitted from its start in ``vectors``: from an estimate far from it, a
-    model with sliding friction can stop at a kink of its motion (where the swing that
-    stops changes), far above its minimum. Where the best misfits, the largest model is fitted
+    may. A model that adds terms to the best is fitted from its estimate (a small step
+    from the best's solution), any other from its start in ``vectors``: from an
+    estimate that drops terms, a model with sliding friction stopped at a kink of its
+    motion (where the swing that stops changes), far above its minimum. Where the best misfits, the largest model is fitted
     from its own start (an estimate far from a misfitting solution may miss a better one).
     With ``bar``, the step stops where neither the best nor any estimate has an AICc
     below it: at once where the model that sets the bar describes the record within its
@@ -233,7 +238,7 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
         if best is reference:
             if top in fitted or not _misfits(best, waveforms[top].t.size):
                 break
-            fitted[top] = fit_candidate(waveforms[top], vectors[top])[0]
+            fitted[top] = _ranked(waveforms[top], vectors[top], _RANKING)[0]
             continue
         reference = best
         estimates = _estimates(waveforms[top], best, set(waveforms) - set(fitted))
@@ -242,7 +247,9 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
             break
         for model, estimate in estimates.items():
             if _may_matter(estimate, best, waveforms[top].t.size):
-                fitted[model] = fit_candidate(waveforms[model], vectors[model])[0]
+                begin = (estimate.internal if set(best.terms) <= set(estimate.terms)
+                         else vectors[model])
+                fitted[model] = _ranked(waveforms[model], begin, _RANKING)[0]
     return {m: fitted.get(m) or estimates[m] for m in waveforms}
 
 
