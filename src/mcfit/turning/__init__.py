@@ -133,6 +133,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     dt = float(_median(steps))
     gaps = _find_gaps(tf, steps, dt)
     spectral_period, noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
+    del steps  # record-sized: each pass of half-cycle fits finds its wide steps itself
     if gaps:
         notes.insert(0, _gap_note(gaps, spectral_period))
     period = _checked_period(spectral_period if period is None else period, dt, source)
@@ -142,7 +143,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     line = _equilibrium_line(tf, xf, period, noise)
     centres, signs = _coarse_extrema(tf, xf, *line, period, samples_per_cycle, noise, source)
     held = _held_until(tf, xf, period, noise)  # crests before it count nowhere
-    samples = Samples.of(tf, xf, steps)
+    samples = Samples.of(tf, xf)
     refined = _refine(samples, centres, signs, line, period,
                       noise if settle_noise is None else float(settle_noise), held)
     line = refined.line
@@ -233,7 +234,7 @@ def _decay_end(m, free, period, t_end):
     crests of the free decay are ``free:end``."""
     after_release = np.arange(m.centres.size) >= free
     floor_level, floor_start = _vibration_floor(
-        m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.fit, m.measured & after_release,
+        m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.gain, m.measured & after_release,
         noise_sigma=m.noise_sigma, period=period, t_end=t_end)
     end = m.centres.size if floor_start is None else floor_start
     return end, floor_level, floor_start

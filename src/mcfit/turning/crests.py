@@ -36,14 +36,16 @@ def _projected_crests(samples, m, period, line, decay, limit):
     Returns the columns (t, sign, y, sigma, log_step, reason) and the time from which the
     crest phase is lost in the noise (None if it is not).
     """
-    half = _local_half_periods(m.centres, period, m.fit.valid)
+    half = _local_half_periods(m.centres, period, m.valid)
     weights = np.where(m.measured, _phase_weights(m.magnitude, m.magnitude_sigma), 0.0)
     crests, crest_signs, phase_variance, phase_lost = _crest_sequence(
         m.crest_times[decay], m.signs[decay], half[decay], weights[decay], limit)
+    del weights
     in_decay = np.zeros(m.centres.size, dtype=bool)
     in_decay[decay] = True
     reliable = m.measured & in_decay & (m.magnitude > _RELIABLE_SNR * m.magnitude_sigma)
     crest_gamma = _decay_rates_at(crests, m.centres, m.magnitude, np.pi / half, reliable)
+    del half, in_decay, reliable  # the measured crests' columns: not needed from here on
     crest_half = _local_half_periods(crests, period, np.ones(crests.size, dtype=bool))
     projected = _fit_windows(samples, crests, crest_signs, crest_half, crest_gamma, *line)
     keep = projected.count > 0  # crests filled in across a long gap have no samples
