@@ -4,10 +4,13 @@ columns of a pass of half-cycle fits freed when no longer needed."""
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
-from mcfit.turning import windows
+from mcfit.turning import crests, windows
+from mcfit.turning.common import _amplitude_sigma, _running_median
 from mcfit.turning.windows import Samples
 
 
@@ -34,3 +37,28 @@ def test_a_record_of_one_sample_has_no_steps_and_two_have_one():
     index, wide = Samples.of(np.array([0.0, 2.0]), np.array([1.0, -1.0])).wide_steps(0.0)
     np.testing.assert_array_equal(index, [0])
     np.testing.assert_array_equal(wide, [2.0])
+
+
+def test_phase_corrected_amplitudes_block_by_block_are_the_whole_array_formula(
+        monkeypatch, rng):
+    n = 1000
+    projected = SimpleNamespace(
+        projection=rng.normal(1.0, 0.3, n),
+        projection_gain=np.where(rng.random(n) < 0.05, np.inf, rng.uniform(0.01, 0.1, n)),
+        phase_sensitivity=rng.uniform(-0.7, 0.7, n))
+    phase_variance = rng.uniform(0.0, 1.5, n)
+    phase_variance[::37] = np.nan
+    monkeypatch.setattr(crests, "_CREST_BLOCK", 64)
+    y, sigma = crests._phase_corrected(projected, phase_variance, 0.02)
+    # THEORY.md section 7, written out on whole arrays.
+    v = np.minimum(np.nan_to_num(phase_variance, nan=0.0), 1.0)
+    gain = np.exp(0.5 * v)
+    expected_y = projected.projection * gain
+    envelope = np.maximum(_running_median(expected_y, 9), 0.0)
+    expected_sigma = np.sqrt(
+        (_amplitude_sigma(0.02, projected.projection_gain) * gain) ** 2
+        + (envelope * gain) ** 2 / 2.0 * ((1.0 - np.exp(-v)) ** 2 + projected.phase_sensitivity**2
+                                          * (1.0 - np.exp(-2.0 * v))))
+    np.testing.assert_array_equal(y, expected_y)
+    np.testing.assert_array_equal(sigma, expected_sigma)
+    assert np.isinf(sigma[~np.isfinite(projected.projection_gain)]).all()

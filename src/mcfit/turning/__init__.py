@@ -146,17 +146,20 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     samples = Samples.of(tf, xf)
     refined = _refine(samples, centres, signs, line, period,
                       noise if settle_noise is None else float(settle_noise), held)
+    del centres, signs  # the coarse crests: not needed once refined
     line = refined.line
     m = _measure(samples, refined, noise)
+    refined_period = refined.period
+    del refined  # its decay rates (two rows as long as the crests) are not needed again
 
     # Where the free decay starts, and where it ends in a floor.
     release_time, free, release_cause = _release(
-        held, m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.measured, refined.period)
-    end, floor_level, floor_start = _decay_end(m, free, refined.period, tf[-1])
+        held, m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.measured, refined_period)
+    end, floor_level, floor_start = _decay_end(m, free, refined_period, tf[-1])
     in_decay = np.zeros(m.centres.size, dtype=bool)
     in_decay[free:end] = True
     period, period_sigma, drift, drift_sigma = _period_and_drift(
-        m.crest_times, m.signs, m.magnitude, m.measured & in_decay, refined.period,
+        m.crest_times, m.signs, m.magnitude, m.measured & in_decay, refined_period,
         _phase_weights(m.magnitude, m.magnitude_sigma))
 
     # The crest phase, continued, and the amplitudes projected onto it.

@@ -76,11 +76,15 @@ def _phase_corrected(projected, phase_variance, noise_sigma):
     variance_d = np.minimum(np.nan_to_num(phase_variance, nan=0.0), _LARGEST_PHASE_VARIANCE)
     phase_gain = np.exp(0.5 * variance_d)
     y = projected.projection * phase_gain
-    sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain) * phase_gain
     envelope = np.maximum(_running_median(y, _ENVELOPE_CRESTS), 0.0)
-    sigma_y = np.sqrt(sigma_y**2 + (envelope * phase_gain) ** 2 / 2.0 * (
-        (1.0 - np.exp(-variance_d)) ** 2
-        + projected.phase_sensitivity**2 * (1.0 - np.exp(-2.0 * variance_d))))
+    sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain)
+    for lo in range(0, y.size, _CREST_BLOCK):  # a block of crests at a time: temporaries
+        part = slice(lo, lo + _CREST_BLOCK)
+        v, gain, sensitivity = variance_d[part], phase_gain[part], \
+            projected.phase_sensitivity[part]
+        sigma_y[part] = np.sqrt((sigma_y[part] * gain) ** 2 + (envelope[part] * gain) ** 2
+                                / 2.0 * ((1.0 - np.exp(-v)) ** 2
+                                         + sensitivity**2 * (1.0 - np.exp(-2.0 * v))))
     return y, sigma_y
 
 
