@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from mcfit import decay
-from mcfit.fit import fit_decay, uncertainty
+from mcfit.fit import candidates, fit_decay, uncertainty
 from mcfit.fit.reported import lmfit_parameters, solve_reported
 from mcfit.fit.problem import Problem, ScaledRecord
 
@@ -103,3 +103,38 @@ def test_the_reported_fit_frees_its_law_without_a_garbage_collection(rng):
     finally:
         gc.enable()
     np.testing.assert_allclose(solution.x, np.polyfit(t, y, 1)[::-1], rtol=1e-9)
+
+
+def test_ranking_stopped_by_its_evaluation_limit_is_unconverged_and_silent(monkeypatch, rng):
+    """Without full_output (no covariance, no copies of the Jacobian), leastsq warns where
+    it stops at maxfev: the ranking reads its status instead, and says nothing."""
+    t, y = _crests(400, rng)
+    scaled = ScaledRecord(t, y, np.full(t.size, 1e-3))
+    problem = Problem(scaled, "b")
+    start = scaled.starting_values("b") * np.array([0.9, 1.0, 1.5, 1.0])
+    monkeypatch.setattr(candidates, "_RANKING_EVALUATIONS", 2)
+    solution, lowest, evaluations, left = candidates._levenberg_marquardt(problem, start)
+    assert solution is None and not left
+    assert evaluations >= 2 and np.isfinite(lowest)
+    monkeypatch.setattr(candidates, "_RANKING_EVALUATIONS", 400)
+    solution, *_ = candidates._levenberg_marquardt(problem, start)
+    assert solution is not None
+
+
+@pytest.mark.parametrize("terms", ["b", "abc"])
+def test_weighting_in_place_leaves_the_kept_jacobian_as_it_was(terms, rng):
+    t, y = _crests(300, rng)
+    problem = Problem(ScaledRecord(t, y, rng.uniform(1e-3, 2e-3, t.size)), terms)
+    x = np.array([1.0, 0.02, 1e-3, 1e-4])[: len(problem.free)]
+    kept = problem.law_jacobian(x).copy()
+    rows = problem.jacobian_rows(x)
+    covariance = problem.covariance(x)
+    gradient = problem.gradient(x)
+    np.testing.assert_array_equal(problem.law_jacobian(x), kept)
+    np.testing.assert_array_equal(rows, kept[problem.columns] * problem.solver_weights)
+    weighted = kept[problem.columns] * problem.weights
+    np.testing.assert_allclose(covariance, np.linalg.pinv(weighted @ weighted.T), rtol=1e-12)
+    all_rows = kept * problem.solver_weights
+    residual = (problem.law(x) - problem.y) * problem.solver_weights
+    norms = np.linalg.norm(all_rows, axis=1) * np.linalg.norm(residual)
+    np.testing.assert_allclose(gradient, all_rows @ residual / norms, rtol=1e-12)
