@@ -80,8 +80,8 @@ def _phase_corrected(projected, phase_variance, noise_sigma):
     sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain)
     for lo in range(0, y.size, _CREST_BLOCK):  # a block of crests at a time: temporaries
         part = slice(lo, lo + _CREST_BLOCK)
-        v, gain, sensitivity = variance_d[part], phase_gain[part], \
-            projected.phase_sensitivity[part]
+        v, gain = variance_d[part], phase_gain[part]
+        sensitivity = projected.phase_sensitivity[part]
         sigma_y[part] = np.sqrt((sigma_y[part] * gain) ** 2 + (envelope[part] * gain) ** 2
                                 / 2.0 * ((1.0 - np.exp(-v)) ** 2
                                          + sensitivity**2 * (1.0 - np.exp(-2.0 * v))))
