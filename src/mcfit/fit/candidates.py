@@ -230,12 +230,14 @@ def _levenberg_marquardt(problem, start):
 
     try:
         with warnings.catch_warnings():
-            # leastsq's own covariance (unused here) may overflow far from a sensible optimum.
+            # Without full_output, leastsq warns where it stops unconverged (the status
+            # says so), and it computes neither its covariance (unused) nor copies of the
+            # Jacobian: a LAPACK call that gave scipy's BLAS its own 32 MiB buffer.
             warnings.filterwarnings("ignore", category=RuntimeWarning,
-                                    module=r"scipy\.optimize\._minpack_py")
-            x, _, _, _, status = optimize.leastsq(
+                                    message=r"(Number of calls to function|[fxg]tol=)")
+            x, status = optimize.leastsq(
                 residual, start[problem.columns], Dfun=jacobian, col_deriv=True,
-                full_output=True, maxfev=_RANKING_EVALUATIONS, **_RANKING_TOLERANCES)
+                maxfev=_RANKING_EVALUATIONS, **_RANKING_TOLERANCES)
     except _LeftTheBounds:
         return None, seen["lowest"], seen["evaluations"], True
     converged = status in (1, 2, 3, 4) and min(x) > 0

@@ -163,7 +163,9 @@ class Problem:
 
     def jacobian_rows(self, free_values):
         """The Jacobian of the residuals, transposed: shape (free parameters, n)."""
-        return self.law_jacobian(free_values)[self.columns] * self.solver_weights
+        rows = self.law_jacobian(free_values)[self.columns]  # a copy: weighted in place
+        rows *= self.solver_weights
+        return rows
 
     def jacobian(self, free_values):
         return self.jacobian_rows(free_values).T
@@ -174,7 +176,8 @@ class Problem:
     def covariance(self, free_values):
         """Unscaled covariance (J^T J)^-1 of the free parameters, record weights (times
         the reduced chi-square for the parameters' covariance)."""
-        rows = self.law_jacobian(free_values)[self.columns] * self.weights
+        rows = self.law_jacobian(free_values)[self.columns]
+        rows *= self.weights
         try:
             return np.linalg.pinv(rows @ rows.T)
         except np.linalg.LinAlgError:
@@ -186,5 +189,7 @@ class Problem:
         w = self.solver_weights
         rows = self.law_jacobian(free_values) * w
         residual = (self.law(free_values) - self.y) * w
-        norms = np.sqrt(np.sum(rows**2, axis=1)) * math.sqrt(float(residual @ residual))
-        return (rows @ residual) / np.where(norms > 0, norms, 1.0)
+        along = rows @ residual
+        squares = np.square(rows, out=rows)  # in place: four record-sized rows are enough
+        norms = np.sqrt(np.sum(squares, axis=1)) * math.sqrt(float(residual @ residual))
+        return along / np.where(norms > 0, norms, 1.0)

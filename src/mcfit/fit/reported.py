@@ -78,8 +78,14 @@ def lmfit_least_squares(residual, jacobian, params):
         # slightly negative where a parameter is nearly unconstrained (Q of 1e6, or a
         # constant record): numpy's warning there is lmfit's, and the caller checks covar.
         warnings.filterwarnings("ignore", category=RuntimeWarning, module=r"lmfit\.")
-        return lmfit.Minimizer(residual, params).minimize(
-            method="least_squares", jac=jacobian, x_scale="jac", **TOLERANCES)
+        minimizer = lmfit.Minimizer(residual, params)
+        result = minimizer.minimize(method="least_squares", jac=jacobian, x_scale="jac",
+                                    **TOLERANCES)
+    # The result's call_kws hold the minimizer's bound Jacobian, the minimizer holds the
+    # result: a reference cycle that kept the law's arrays and the solver's Jacobian (200
+    # MiB for 2x10^6 turning points) alive until the next full garbage collection.
+    minimizer.result = None
+    return result
 
 
 def _covariance(law, x, result, chi_square):

@@ -133,6 +133,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     dt = float(_median(steps))
     gaps = _find_gaps(tf, steps, dt)
     spectral_period, noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
+    del steps  # record-sized: each pass of half-cycle fits finds its wide steps itself
     if gaps:
         notes.insert(0, _gap_note(gaps, spectral_period))
     period = _checked_period(spectral_period if period is None else period, dt, source)
@@ -142,20 +143,23 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     line = _equilibrium_line(tf, xf, period, noise)
     centres, signs = _coarse_extrema(tf, xf, *line, period, samples_per_cycle, noise, source)
     held = _held_until(tf, xf, period, noise)  # crests before it count nowhere
-    samples = Samples.of(tf, xf, steps)
+    samples = Samples.of(tf, xf)
     refined = _refine(samples, centres, signs, line, period,
                       noise if settle_noise is None else float(settle_noise), held)
+    del centres, signs  # the coarse crests: not needed once refined
     line = refined.line
     m = _measure(samples, refined, noise)
+    refined_period = refined.period
+    del refined  # its decay rates (two rows as long as the crests) are not needed again
 
     # Where the free decay starts, and where it ends in a floor.
     release_time, free, release_cause = _release(
-        held, m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.measured, refined.period)
-    end, floor_level, floor_start = _decay_end(m, free, refined.period, tf[-1])
+        held, m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.measured, refined_period)
+    end, floor_level, floor_start = _decay_end(m, free, refined_period, tf[-1])
     in_decay = np.zeros(m.centres.size, dtype=bool)
     in_decay[free:end] = True
     period, period_sigma, drift, drift_sigma = _period_and_drift(
-        m.crest_times, m.signs, m.magnitude, m.measured & in_decay, refined.period,
+        m.crest_times, m.signs, m.magnitude, m.measured & in_decay, refined_period,
         _phase_weights(m.magnitude, m.magnitude_sigma))
 
     # The crest phase, continued, and the amplitudes projected onto it.
@@ -233,7 +237,7 @@ def _decay_end(m, free, period, t_end):
     crests of the free decay are ``free:end``."""
     after_release = np.arange(m.centres.size) >= free
     floor_level, floor_start = _vibration_floor(
-        m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.fit, m.measured & after_release,
+        m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.gain, m.measured & after_release,
         noise_sigma=m.noise_sigma, period=period, t_end=t_end)
     end = m.centres.size if floor_start is None else floor_start
     return end, floor_level, floor_start

@@ -36,14 +36,16 @@ def _projected_crests(samples, m, period, line, decay, limit):
     Returns the columns (t, sign, y, sigma, log_step, reason) and the time from which the
     crest phase is lost in the noise (None if it is not).
     """
-    half = _local_half_periods(m.centres, period, m.fit.valid)
+    half = _local_half_periods(m.centres, period, m.valid)
     weights = np.where(m.measured, _phase_weights(m.magnitude, m.magnitude_sigma), 0.0)
     crests, crest_signs, phase_variance, phase_lost = _crest_sequence(
         m.crest_times[decay], m.signs[decay], half[decay], weights[decay], limit)
+    del weights
     in_decay = np.zeros(m.centres.size, dtype=bool)
     in_decay[decay] = True
     reliable = m.measured & in_decay & (m.magnitude > _RELIABLE_SNR * m.magnitude_sigma)
     crest_gamma = _decay_rates_at(crests, m.centres, m.magnitude, np.pi / half, reliable)
+    del half, in_decay, reliable  # the measured crests' columns: not needed from here on
     crest_half = _local_half_periods(crests, period, np.ones(crests.size, dtype=bool))
     projected = _fit_windows(samples, crests, crest_signs, crest_half, crest_gamma, *line)
     keep = projected.count > 0  # crests filled in across a long gap have no samples
@@ -74,11 +76,15 @@ def _phase_corrected(projected, phase_variance, noise_sigma):
     variance_d = np.minimum(np.nan_to_num(phase_variance, nan=0.0), _LARGEST_PHASE_VARIANCE)
     phase_gain = np.exp(0.5 * variance_d)
     y = projected.projection * phase_gain
-    sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain) * phase_gain
     envelope = np.maximum(_running_median(y, _ENVELOPE_CRESTS), 0.0)
-    sigma_y = np.sqrt(sigma_y**2 + (envelope * phase_gain) ** 2 / 2.0 * (
-        (1.0 - np.exp(-variance_d)) ** 2
-        + projected.phase_sensitivity**2 * (1.0 - np.exp(-2.0 * variance_d))))
+    sigma_y = _amplitude_sigma(noise_sigma, projected.projection_gain)
+    for lo in range(0, y.size, _CREST_BLOCK):  # a block of crests at a time: temporaries
+        part = slice(lo, lo + _CREST_BLOCK)
+        v, gain = variance_d[part], phase_gain[part]
+        sensitivity = projected.phase_sensitivity[part]
+        sigma_y[part] = np.sqrt((sigma_y[part] * gain) ** 2 + (envelope[part] * gain) ** 2
+                                / 2.0 * ((1.0 - np.exp(-v)) ** 2
+                                         + sensitivity**2 * (1.0 - np.exp(-2.0 * v))))
     return y, sigma_y
 
 

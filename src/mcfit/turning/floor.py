@@ -20,9 +20,10 @@ _FLOOR_DENSITY = 0.5
 _FLOOR_REACH = 4.0
 
 
-def _vibration_floor(centres, signs, magnitude, magnitude_sigma, fit, candidate, *,
+def _vibration_floor(centres, signs, magnitude, magnitude_sigma, gain, candidate, *,
                      noise_sigma, period, t_end):
-    """(floor level, index of the first crest in the floor) or (0.0, None).
+    """(floor level, index of the first crest in the floor) or (0.0, None); ``gain`` is
+    var(amplitude)/sigma**2 of each crest's half-cycle fit.
 
     A floor of vibration, hum or quantization: the envelope stops decaying at the end of
     the record, well below its start and well above what white noise gives a half-cycle
@@ -41,7 +42,7 @@ def _vibration_floor(centres, signs, magnitude, magnitude_sigma, fit, candidate,
         return 0.0, None
     values = magnitude[index]
     smooth = _running_median(values, max(5, (index.size // 30) | 1))
-    white = noise_sigma * np.sqrt(2.0 * _median(fit.gain[index]))
+    white = noise_sigma * np.sqrt(2.0 * _median(gain[index]))
     m = max(5, index.size // 8)
     final = float(_median(smooth[-m:]))
     if not (index.size >= 3 * m and final < 0.25 * np.max(smooth) and final > 3 * white):

@@ -18,7 +18,9 @@ class MeasuredCrests:
 
     centres: np.ndarray
     signs: np.ndarray
-    fit: object  # _WindowFits
+    valid: np.ndarray  # the half-cycle fit is valid
+    shift: np.ndarray  # fitted crest time minus window centre
+    gain: np.ndarray  # var(amplitude) / sigma**2 of the fit
     noise_sigma: float  # sample noise from the fit residuals (else the spectrum's)
     magnitude: np.ndarray  # |amplitude| of each two-parameter fit
     magnitude_sigma: np.ndarray
@@ -27,19 +29,24 @@ class MeasuredCrests:
     @property
     def crest_times(self):
         """Window centres moved to the fitted crests where the fit is valid."""
-        return self.centres + np.where(self.fit.valid, self.fit.shift, 0.0)
+        return self.centres + np.where(self.valid, self.shift, 0.0)
 
 
 def _measure(samples, crests, noise):
-    """Fit the half-cycles of the refined ``crests`` once more and measure the crests."""
+    """Fit the half-cycles of the refined ``crests`` once more and measure the crests.
+
+    Only the fits' columns the later stages read are kept: the others (nine arrays of
+    the crests' size, 140 MB at 2x10^6 crests) are freed before the crest phase is
+    smoothed and the amplitudes projected."""
     half = _local_half_periods(crests.centres, crests.period, crests.valid)
     fit = _fit_windows(samples, crests.centres, crests.signs, half, crests.gamma, *crests.line)
     noise_sigma = _pooled_noise(fit)
     if not np.isfinite(noise_sigma):
         noise_sigma = noise
     return MeasuredCrests(
-        centres=crests.centres, signs=crests.signs, fit=fit, noise_sigma=noise_sigma,
-        magnitude=np.abs(fit.y), magnitude_sigma=_amplitude_sigma(noise_sigma, fit.gain),
+        centres=crests.centres, signs=crests.signs, valid=fit.valid, shift=fit.shift,
+        gain=fit.gain, noise_sigma=noise_sigma, magnitude=np.abs(fit.y),
+        magnitude_sigma=_amplitude_sigma(noise_sigma, fit.gain),
         measured=fit.valid & ~_clipped(fit, crests.signs))
 
 
@@ -67,20 +74,19 @@ class _WindowFits:
 @dataclass(frozen=True)
 class Samples:
     """The finite samples of a record, with what every pass of half-cycle fits needs of
-    them, found once: the time steps, the samples at the record's largest and smallest
-    level (within 1e-9 of its range, for clipping) and, where several sit there, the
-    quantum of the values near those levels (0 for values not on a grid)."""
+    them, found once: the samples at the record's largest and smallest level (within
+    1e-9 of its range, for clipping) and, where several sit there, the quantum of the
+    values near those levels (0 for values not on a grid)."""
 
     t: np.ndarray
     x: np.ndarray
-    steps: np.ndarray
     at_top: np.ndarray
     at_bottom: np.ndarray
     quantum: float = 0.0
 
     @classmethod
-    def of(cls, t, x, steps=None):
-        """Samples ``t``, ``x`` (``steps``: ``np.diff(t)`` when already known)."""
+    def of(cls, t, x):
+        """Samples ``t``, ``x``."""
         top = float(np.max(x))
         bottom = float(np.min(x))
         tolerance = 1e-9 * (top - bottom)
@@ -88,7 +94,19 @@ class Samples:
                              np.flatnonzero(x <= bottom + tolerance))
         quantum = (_quantum(x, top, bottom) if max(at_top.size, at_bottom.size) >= 2
                    else 0.0)
-        return cls(t, x, np.diff(t) if steps is None else steps, at_top, at_bottom, quantum)
+        return cls(t, x, at_top, at_bottom, quantum)
+
+    def wide_steps(self, limit):
+        """(index i, step t[i+1] - t[i]) of the time steps of at least ``limit``, taken
+        _BLOCK_SAMPLES at a time: a record-sized array of steps (80 MB at 10^7 samples)
+        is not kept for the few wide ones."""
+        index, steps = [np.zeros(0, dtype=np.intp)], [np.zeros(0)]
+        for lo in range(0, self.t.size - 1, _BLOCK_SAMPLES):
+            block = np.diff(self.t[lo:lo + _BLOCK_SAMPLES + 1])
+            wide = np.flatnonzero(block >= limit)
+            index.append(wide + lo)
+            steps.append(block[wide])
+        return np.concatenate(index), np.concatenate(steps)
 
 
 def _quantum(x, top, bottom):
@@ -120,7 +138,7 @@ def _fit_windows(samples, centres, signs, half, gamma, e0, e1, t_ref):
     out.quantum = samples.quantum
     out.at_max, out.at_min = (np.searchsorted(where, hi) - np.searchsorted(where, lo)
                               for where in (samples.at_top, samples.at_bottom))
-    unbroken = _without_gaps(samples.steps, lo, hi, half)
+    unbroken = _without_gaps(samples, lo, hi, half)
     first = 0
     cumulative = np.cumsum(hi - lo)
     while first < k:
@@ -139,11 +157,11 @@ def _fit_windows(samples, centres, signs, half, gamma, e0, e1, t_ref):
     return out
 
 
-def _without_gaps(steps, lo, hi, half):
-    """Whether each window ``lo:hi`` has no time step (``steps``) of half its half-period
-    or more."""
+def _without_gaps(samples, lo, hi, half):
+    """Whether each window ``lo:hi`` of ``samples`` has no time step of half its
+    half-period or more."""
     limit = 0.5 * half
-    wide = np.flatnonzero(steps >= np.min(limit, initial=np.inf))
+    wide, steps = samples.wide_steps(np.min(limit, initial=np.inf))
     unbroken = np.ones(lo.size, dtype=bool)
     if wide.size == 0:  # the usual case: no step can break a window
         return unbroken
@@ -151,7 +169,7 @@ def _without_gaps(steps, lo, hi, half):
     begin = np.searchsorted(wide, lo)
     end = np.searchsorted(wide, np.maximum(hi - 1, lo))
     some = end > begin
-    widest = np.maximum.reduceat(np.append(steps[wide], 0.0),
+    widest = np.maximum.reduceat(np.append(steps, 0.0),
                                  np.column_stack([begin[some], end[some]]).ravel())[::2]
     unbroken[some] = widest < limit[some]
     return unbroken
