@@ -20,7 +20,7 @@ Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md sectio
 The half-cycles are solved all at once, by one Newton iteration over all their
 collocation equations (:func:`_all_half_cycles`), started from the averaged law; the
 functions take arrays of parameter sets (shape (m,)). :func:`phase_plane_differences`
-gives a forward-difference Jacobian from one solution. numpy only.
+gives a forward-difference Jacobian from one solution. numpy and scipy.sparse only.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from scipy import sparse
 
 from mcfit import decay
 
@@ -44,9 +45,6 @@ _GLOBAL_ITERATIONS = 60  # all at once; a stop guessed too early moves a half-cy
 # can creep at a constant rate and stall above the tolerance).
 _STALLED = 12
 _HALF_PI = 0.5 * math.pi
-# Above this damping ratio (Q below about 2.6) a half-cycle's changes in
-# phase_plane_differences are taken from every set's own interpolant.
-_STRONG = 0.3
 # Most values in one array of the all-at-once solution (2**21 floats: 16 MiB).
 _MAX_GRID = 1 << 21
 
@@ -147,9 +145,8 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     -----
     The moved sets take one Newton step from the solution at ``parameters`` with its
     Jacobian (the chord method: the error is of the order of the squared step). Their
-    change at fixed time is found at the nodes (the change of phase or amplitude less its
-    rate times the node's shift in time) and interpolated linearly between them, which
-    is within about 1e-4/Q of the change. The last swings of a decay that stops are
+    change at fixed time is the interpolant's, differentiated in its nodes
+    (:func:`_linear_changes`), at any damping. The last swings of a decay that stops are
     integrated for every set; where a moved set counts its half-cycles from another
     multiple of pi, every set is solved on its own and the changes are differences of
     :func:`phase_plane_motion`.
@@ -175,42 +172,61 @@ def phase_plane_differences(t, parameters, steps, memory=None):
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
         j, s, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
         x = amplitude * np.cos(phase)
-        # Every set on its own in strongly damped half-cycles (the phase speed varies
-        # much, the linear interpolation less accurate) and the last swings of a stop.
-        strong = _damping_ratio(solved[0][0], a[0], b[0], c[0], omega[0]) > _STRONG
-        exact = strong[np.minimum(j // FINE, strong.size - 1)] | (t >= np.min(final[:, 0]))
-        changes = np.empty((len(sets) - 1, t.size))
-        if not np.all(exact):
-            rest = slice(None) if not np.any(exact) else ~exact
-            changes[:, rest] = _interpolated_changes(nodes, j[rest], s[rest],
-                                                     amplitude[rest], phase[rest])
-        if np.any(exact):
-            moved = _with_final_swing(t[exact], _sampled(t[exact], *nodes), final, (a, b, c),
-                                      omega[:, 0])
-            x[exact], changes[:, exact] = moved[0], moved[1:] - moved[0]
+        changes = _linear_changes(nodes, j, s, amplitude, phase, t >= nodes[0][0, -1])
+        stops = final[:, 0]
+        if np.any(np.isfinite(stops)) and t[-1] >= np.min(stops):
+            # The last swings of a stop, of every set: its own motion up to its stop.
+            late = t >= np.min(stops)
+            moved = _with_final_swing(t[late], x[late] + np.vstack(
+                [np.zeros((1, int(np.sum(late)))), changes[:, late]]), final, (a, b, c),
+                omega[:, 0])
+            x[late], changes[:, late] = moved[0], moved[1:] - moved[0]
     return (np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300),
             np.nan_to_num(changes, nan=0.0, posinf=1e300, neginf=-1e300))
 
 
-def _interpolated_changes(nodes, j, s, amplitude, phase):
+def _linear_changes(nodes, j, s, amplitude, phase, after):
     """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
-    ``j`` at position ``s``, where set 0 has ``amplitude`` and total ``phase``: the
-    changes of phase and amplitude at fixed time, at the nodes (the change less its rate
-    times the node's shift in time), interpolated linearly."""
-    shift = nodes[0][1:] - nodes[0][:1]
-    at_nodes = np.concatenate([nodes[k][1:] - nodes[k][:1] - nodes[k + 2][:1] * shift
-                               for k in (1, 2)])  # phase, then amplitude, at fixed time
-    # Past the last node s = 1 (or the last two nodes are the same state at rest).
-    at_samples = at_nodes[:, j] + s * np.diff(at_nodes, axis=1)[:, j]
-    return (at_samples[shift.shape[0]:] * np.cos(phase)
-            - at_samples[:shift.shape[0]] * (amplitude * np.sin(phase)))
+    ``j`` of set 0 at position ``s``, where set 0 has ``amplitude`` and total ``phase``:
+    the cubic Hermite interpolant of :func:`_interpolated` differentiated in its nodes'
+    times, values and rates, exact to first order in their changes; past the last node
+    (``after``), the change of its state.
 
-
-def _damping_ratio(amplitudes, a, b, c, omega):
-    """The largest (pi/2)*g(A)/(omega*A) of each half-cycle (shape (count, NODES)): the
-    phase speed is omega*(1 -+ it) at the turning points."""
-    safe = np.maximum(amplitudes, 1e-100)
-    return np.max(_HALF_PI * (c + safe * (b + a * safe)) / (omega * safe), axis=1)
+    In each interval the change of phase or amplitude at a fixed time is a cubic in s:
+    its four coefficients per interval, then one sparse row per sample weighs them."""
+    times = nodes[0]
+    span = np.diff(times[0])
+    width = np.where(span > 0, span, 1.0)[:, None]
+    shift = (times[1:] - times[:1]).T  # (nodes, sets)
+    start, apart = shift[:-1], shift[:-1] - shift[1:]
+    tables = []
+    for value, rate in ((nodes[1], nodes[3]), (nodes[2], nodes[4])):
+        p, m0, m1 = value[0, :, None], rate[0, :-1, None], rate[0, 1:, None]
+        change = (value[1:] - value[:1]).T
+        rate_change = (rate[1:] - rate[:1]).T
+        r0, r1 = rate_change[:-1] * width, rate_change[1:] * width
+        jump = change[1:] - change[:-1]
+        mean = (p[1:] - p[:-1]) / width
+        # The interpolant's rate in s is m0 + linear*s + square*s**2 (per unit time); the
+        # sample's s moves with the nodes' times, and the interpolant with the width.
+        linear, square = 6 * mean - 4 * m0 - 2 * m1, 3 * (m0 + m1) - 6 * mean
+        zero = np.zeros_like(change[-1:])
+        tables += [np.vstack([change[:-1] - m0 * start, change[-1:]]),
+                   np.vstack([r0 - linear * start, zero]),
+                   np.vstack([3 * jump - 2 * r0 - r1 + (linear + 2 * m0 + m1) * apart
+                              - square * start, zero]),
+                   np.vstack([r0 + r1 - 2 * jump + (square - m0 - m1) * apart, zero])]
+    table = np.stack(tables, axis=1).reshape(-1, shift.shape[1])  # (nodes * 8, sets)
+    weights = np.empty((s.size, 8))
+    weights[:, 0] = -amplitude * np.sin(phase)  # dx/dphase
+    weights[:, 4] = np.cos(phase)  # dx/damplitude
+    for k in (0, 4):
+        for power in (1, 2, 3):
+            weights[:, k + power] = weights[:, k + power - 1] * s
+    row = np.where(after, times.shape[1] - 1, j)  # past the last node: its state
+    matrix = sparse.csr_matrix((weights.ravel(), ((8 * row)[:, None] + np.arange(8)).ravel(),
+                                np.arange(0, 8 * s.size + 1, 8)), shape=(s.size, table.shape[0]))
+    return (matrix @ table).T
 
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
