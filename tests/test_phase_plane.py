@@ -88,3 +88,37 @@ def test_the_final_swings_match_a_tight_integration(a, b, c, amplitude, sign):
                                       np.array([a, 0.1]), np.array([b, 0.5]),
                                       np.array([c, 0.1]), np.array([OMEGA, 6.0]))
     np.testing.assert_allclose(batch[0], x, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize(("a", "b", "c", "amplitude", "sign"), [
+    (0.0, 0.3, 0.2, 0.1, -1.0),      # one swing, then held
+    (0.0, 0.95, 0.043, 0.285, 1.0),  # several swings
+    (0.47, 0.27, 0.002, 0.197, 1.0),  # ten swings before the mass is held
+])
+def test_neighbouring_final_swings_are_their_changes_to_first_order(a, b, c, amplitude,
+                                                                    sign):
+    """Sets moved by about 1e-7 (stop time, amplitude, frequency, a, b, c): set 0's x as
+    :func:`phase_plane._final_swings` gives it, the others' changes within 1e-5 of the
+    changes of their own final swings (the difference of two solutions, each accurate
+    to its rounding)."""
+    t = np.linspace(0.0, 8.0, 1601)
+    steps = np.diag([1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7])
+    base = np.array([3.0025, amplitude, OMEGA, a, b, c])  # between samples
+    sets = base + np.vstack([np.zeros(6), steps])
+    final = np.column_stack([sets[:, 0], sets[:, 1], np.full(7, sign)])
+    after = t >= 3.0025
+    x, changes = phase_plane._neighbour_swings(t[after], final, *sets[:, 3:].T,
+                                               sets[:, 2])
+    each = phase_plane._final_swings(t[after], final, *sets[:, 3:].T, sets[:, 2])
+    np.testing.assert_allclose(x, each[0], rtol=0, atol=1e-15)
+    expected = np.array([values - each[0] for values in each[1:]])
+    assert np.max(np.abs(changes - expected)) < 1e-5 * np.max(np.abs(expected))
+
+
+def test_final_swings_of_another_kind_are_not_neighbours():
+    """A set held a swing earlier than set 0 has no first-order change: None."""
+    t = np.linspace(0.0, 8.0, 1601)
+    final = np.array([[3.0, 0.285, 1.0], [3.0, 0.285, 1.0]])
+    assert phase_plane._neighbour_swings(t[t >= 3.0], final, np.zeros(2),
+                                         np.array([0.95, 0.95]), np.array([0.043, 0.3]),
+                                         np.full(2, OMEGA)) is None

@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.polynomial import chebyshev
 from scipy import sparse
 
 from mcfit import decay
@@ -174,7 +175,13 @@ def phase_plane_differences(t, parameters, steps, memory=None):
         x = amplitude * np.cos(phase)
         changes = _linear_changes(nodes, j, s, amplitude, phase, t >= nodes[0][0, -1])
         stops = final[:, 0]
-        if np.any(np.isfinite(stops)) and t[-1] >= np.min(stops):
+        swung = None
+        if np.isfinite(stops[0]) and t[-1] >= stops[0]:
+            late = t >= stops[0]
+            swung = _neighbour_swings(t[late], final, a[:, 0], b[:, 0], c[:, 0], omega[:, 0])
+        if swung is not None:
+            x[late], changes[:, late] = swung
+        elif np.any(np.isfinite(stops)) and t[-1] >= np.min(stops):
             # The last swings of a stop, of every set: its own motion up to its stop.
             late = t >= np.min(stops)
             moved = _with_final_swing(t[late], x[late] + np.vstack(
@@ -538,6 +545,9 @@ _SWING_S, _SWING_INTEGRATE, _ = _chebyshev_matrices(_SWING_NODES, 2)
 # Node values -> Chebyshev coefficients on the piece.
 _SWING_FIT = np.polynomial.chebyshev.chebfit(2 * _SWING_S - 1, np.eye(_SWING_NODES),
                                              _SWING_NODES - 1)
+# Coefficients -> values at the 33 points of a piece where a reversal is looked for.
+_SWING_GRID = np.polynomial.chebyshev.chebvander(np.linspace(-1.0, 1.0, 33),
+                                                 _SWING_NODES - 1)
 _SWING_PIECES = (1.0, 0.1)  # half periods: the first piece of a half-swing, the others
 _SWING_ITERATIONS = 30
 _MAX_PIECES = 400
@@ -587,36 +597,113 @@ def _final_swings(t, final, a, b, c, omega):
     return found
 
 
+def _neighbour_swings(t, final, a, b, c, omega):
+    """As :func:`_final_swings` for sets that are small changes of set 0 (a Jacobian's
+    moved sets): x of set 0 at the times ``t >= final[0, 0]``, and each other set's
+    change there, shape (m - 1, n), to first order in the changes; None where a set's
+    swings differ in kind (reverse, or are held, in another piece).
+
+    Set 0's pieces are solved as :func:`_final_swings` solves them; the others take one
+    Newton step from them with set 0's Jacobian, and their reversals one from set 0's.
+    Each set's polynomial is evaluated at set 0's position in the piece, plus set 0's
+    rate there times the difference of the positions."""
+    m, n = final.shape[0], _SWING_NODES
+    now = np.zeros(m)
+    position, velocity = final[:, 2] * final[:, 1], np.zeros(m)
+    end = t[-1] - final[0, 0]
+    pieces = []
+    for _ in range(_MAX_PIECES):
+        size = np.abs(position)
+        spring = omega * omega * size
+        held = (velocity == 0.0) & ((spring <= _HALF_PI * omega * c) | (
+            spring <= _HALF_PI * omega * (c + size * (b + a * size))))
+        sense = np.where(velocity != 0.0, np.sign(velocity), -np.sign(position))
+        if np.any(held != held[0]) or np.any(sense != sense[0]):
+            return None
+        if held[0] or now[0] >= end:
+            break
+        length = np.where(velocity == 0.0, _SWING_PIECES[0], _SWING_PIECES[1]) * (
+            math.pi / omega)
+        _, x, v = _swing_nodes(position[:1], velocity[:1], length[:1], omega[:1], a[:1],
+                               b[:1], c[:1])
+        residual, jacobian = _swing_equations(np.repeat(x, m, axis=0),
+                                              np.repeat(v, m, axis=0), position, velocity,
+                                              length, omega, a, b, c, sense[:, None])
+        step = np.linalg.solve(jacobian[0], residual[1:].T).T
+        x = np.vstack([x, x - step[:, :n]]) @ _SWING_FIT.T  # Chebyshev coefficients
+        v = np.vstack([v, v - step[:, n:]]) @ _SWING_FIT.T
+        span = _reversal(_Interpolant(v[0], length[0]), sense[0], length[0])
+        turns = span < length[0]
+        reversing = np.any(sense[1:, None] * (v[1:] @ _SWING_GRID.T)[:, 1:] <= 0, axis=1)
+        if np.any(reversing != turns):
+            return None
+        spans = np.full(m, span) if turns else length
+        if turns:
+            at = 2 * span / length - 1
+            rate = chebyshev.chebval(at, chebyshev.chebder(v.T), tensor=False) * 2 / length
+            spans = span - chebyshev.chebval(at, v.T, tensor=False) / rate
+            spans[0] = span
+        pieces.append((now.copy(), length, x))
+        at = 2 * spans / length - 1
+        position = chebyshev.chebval(at, x.T, tensor=False)
+        velocity = np.zeros(m) if turns else chebyshev.chebval(at, v.T, tensor=False)
+        now = now + spans
+    else:
+        raise RuntimeError("the final swings did not stop")  # pragma: no cover
+    return _neighbour_values(t - final[0, 0], final[0, 0] - final[:, 0], pieces, now[0],
+                             position)
+
+
+def _neighbour_values(local, offset, pieces, end, position):
+    """x of set 0 at its times ``local`` since its stop, and the other sets' changes:
+    in each piece (start, length, coefficients of every set) each set's polynomial at
+    set 0's position in it plus set 0's rate times the shift of the position (the sets'
+    stops are ``offset`` before set 0's); from ``end`` on, held at ``position``."""
+    x = np.full(local.size, position[0])
+    changes = np.repeat((position[1:] - position[0])[:, None], local.size, axis=1)
+    ends = [start[0] for start, _, _ in pieces[1:]] + [end]
+    for (start, length, coefficients), stop in zip(pieces, ends):
+        low, high = np.searchsorted(local, [start[0], stop])
+        if high <= low:
+            continue
+        at = 2 * (local[low:high] - start[0]) / length[0] - 1
+        basis = chebyshev.chebvander(at, _SWING_NODES - 1)
+        values = basis @ coefficients.T
+        rate = basis[:, :-1] @ chebyshev.chebder(coefficients[0])
+        shift = 2 * (local[low:high, None] + offset[1:] - start[1:]) / length[1:] - 1
+        x[low:high] = values[:, 0]
+        changes[:, low:high] = (values[:, 1:] - values[:, :1]
+                                + rate[:, None] * (shift - at[:, None])).T
+    return x, changes
+
+
 def _swing_piece(x0, v0, length, omega, a, b, c):
     """A piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set: the time
     to the reversal of the velocity within it (``length`` where there is none), and x
     and xdot as functions of the time since its start."""
+    sense, x, v = _swing_nodes(x0, v0, length, omega, a, b, c)
+    x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
+    v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
+    spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
+    return spans, x_of, v_of
+
+
+def _swing_nodes(x0, v0, length, omega, a, b, c):
+    """The sense of the velocity (shape (m, 1)) and x and xdot at the collocation points
+    of a piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set, by
+    Newton's method from a cosine about the centre of the friction at its start."""
     sense = np.where(v0 != 0.0, np.sign(v0), -np.sign(x0))[:, None]  # of the velocity
-    push = sense * (_HALF_PI * omega)[:, None]
-    w2 = (omega * omega)[:, None]
-    scale = length[:, None, None] * _SWING_INTEGRATE  # integrates node values from 0
-    # The start: the friction held at its start value, a cosine about the moved centre.
     size = np.hypot(x0, v0 / omega)
-    centre = -push[:, 0] / w2[:, 0] * (c + size * (b + a * size))
+    centre = -sense[:, 0] * _HALF_PI / omega * (c + size * (b + a * size))
     phase = omega[:, None] * length[:, None] * _SWING_S
     x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
          + (v0 / omega)[:, None] * np.sin(phase))
     v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
          + v0[:, None] * np.cos(phase))
     n = _SWING_NODES
-    identity = np.broadcast_to(np.eye(n), scale.shape)
-    a3, b3, c3 = a[:, None], b[:, None], c[:, None]
     last = math.inf
     for _ in range(_SWING_ITERATIONS):
-        amplitude = np.maximum(np.sqrt(x * x + v * v / w2), 1e-300)
-        force = -w2 * x - push * (c3 + amplitude * (b3 + a3 * amplitude))
-        slope = push * (b3 + 2 * a3 * amplitude) / amplitude
-        residual = np.concatenate([x - x0[:, None] - np.einsum("mij,mj->mi", scale, v),
-                                   v - v0[:, None] - np.einsum("mij,mj->mi", scale, force)],
-                                  axis=1)
-        jacobian = np.block([[identity, -scale],
-                             [-scale * (-w2 - slope * x)[:, None, :],
-                              identity - scale * (-slope * v / w2)[:, None, :]]])
+        residual, jacobian = _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense)
         step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
         x, v = x - step[:, :n], v - step[:, n:]
         change = np.max(np.abs(step)) / np.max(size)
@@ -624,10 +711,27 @@ def _swing_piece(x0, v0, length, omega, a, b, c):
         if change <= 1e-14 or change > 0.5 * last:
             break
         last = change
-    x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
-    v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
-    spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
-    return spans, x_of, v_of
+    return sense, x, v
+
+
+def _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense):
+    """Residuals (shape (m, 2*_SWING_NODES)) and Jacobian of a piece's collocation
+    equations x = x0 + integral of xdot, xdot = xdot0 + integral of the force."""
+    push = sense * (_HALF_PI * omega)[:, None]
+    w2 = (omega * omega)[:, None]
+    scale = length[:, None, None] * _SWING_INTEGRATE  # integrates node values from 0
+    a3, b3, c3 = a[:, None], b[:, None], c[:, None]
+    amplitude = np.maximum(np.sqrt(x * x + v * v / w2), 1e-300)
+    force = -w2 * x - push * (c3 + amplitude * (b3 + a3 * amplitude))
+    slope = push * (b3 + 2 * a3 * amplitude) / amplitude
+    residual = np.concatenate([x - x0[:, None] - np.einsum("mij,mj->mi", scale, v),
+                               v - v0[:, None] - np.einsum("mij,mj->mi", scale, force)],
+                              axis=1)
+    identity = np.broadcast_to(np.eye(_SWING_NODES), scale.shape)
+    jacobian = np.block([[identity, -scale],
+                         [-scale * (-w2 - slope * x)[:, None, :],
+                          identity - scale * (-slope * v / w2)[:, None, :]]])
+    return residual, jacobian
 
 
 class _Interpolant:
