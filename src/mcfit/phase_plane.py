@@ -188,8 +188,8 @@ def phase_plane_differences(t, parameters, steps, memory=None):
                 [np.zeros((1, int(np.sum(late)))), changes[:, late]]), final, (a, b, c),
                 omega[:, 0])
             x[late], changes[:, late] = moved[0], moved[1:] - moved[0]
-    return (np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300),
-            np.nan_to_num(changes, nan=0.0, posinf=1e300, neginf=-1e300))
+    return (np.nan_to_num(x, copy=False, nan=0.0, posinf=1e300, neginf=-1e300),
+            np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
 
 
 def _linear_changes(nodes, j, s, amplitude, phase, after):
@@ -202,38 +202,40 @@ def _linear_changes(nodes, j, s, amplitude, phase, after):
     In each interval the change of phase or amplitude at a fixed time is a cubic in s:
     its four coefficients per interval, then one sparse row per sample weighs them."""
     times = nodes[0]
+    count, sets = times.shape[1], times.shape[0] - 1
     span = np.diff(times[0])
     width = np.where(span > 0, span, 1.0)[:, None]
-    shift = (times[1:] - times[:1]).T  # (nodes, sets)
+    shift = times.T[:, 1:] - times.T[:, :1]  # (nodes, sets)
     start, apart = shift[:-1], shift[:-1] - shift[1:]
-    tables = []
-    for value, rate in ((nodes[1], nodes[3]), (nodes[2], nodes[4])):
-        p, m0, m1 = value[0, :, None], rate[0, :-1, None], rate[0, 1:, None]
-        change = (value[1:] - value[:1]).T
-        rate_change = (rate[1:] - rate[:1]).T
+    # Per interval and set, the coefficients of s**0..3 of the phase's change, then the
+    # amplitude's; the last row, past the last node, the change of its state.
+    table = np.zeros((count, 8, sets))
+    for k, (value, rate) in ((0, (nodes[1].T, nodes[3].T)), (4, (nodes[2].T, nodes[4].T))):
+        p, m0, m1 = value[:, :1], rate[:-1, :1], rate[1:, :1]
+        change = value[:, 1:] - p
+        rate_change = rate[:, 1:] - rate[:, :1]
         r0, r1 = rate_change[:-1] * width, rate_change[1:] * width
         jump = change[1:] - change[:-1]
         mean = (p[1:] - p[:-1]) / width
         # The interpolant's rate in s is m0 + linear*s + square*s**2 (per unit time); the
         # sample's s moves with the nodes' times, and the interpolant with the width.
         linear, square = 6 * mean - 4 * m0 - 2 * m1, 3 * (m0 + m1) - 6 * mean
-        zero = np.zeros_like(change[-1:])
-        tables += [np.vstack([change[:-1] - m0 * start, change[-1:]]),
-                   np.vstack([r0 - linear * start, zero]),
-                   np.vstack([3 * jump - 2 * r0 - r1 + (linear + 2 * m0 + m1) * apart
-                              - square * start, zero]),
-                   np.vstack([r0 + r1 - 2 * jump + (square - m0 - m1) * apart, zero])]
-    table = np.stack(tables, axis=1).reshape(-1, shift.shape[1])  # (nodes * 8, sets)
+        table[:-1, k] = change[:-1] - m0 * start
+        table[-1, k] = change[-1]
+        table[:-1, k + 1] = r0 - linear * start
+        table[:-1, k + 2] = (3 * jump - 2 * r0 - r1 + (linear + 2 * m0 + m1) * apart
+                             - square * start)
+        table[:-1, k + 3] = r0 + r1 - 2 * jump + (square - m0 - m1) * apart
     weights = np.empty((s.size, 8))
     weights[:, 0] = -amplitude * np.sin(phase)  # dx/dphase
     weights[:, 4] = np.cos(phase)  # dx/damplitude
     for k in (0, 4):
         for power in (1, 2, 3):
-            weights[:, k + power] = weights[:, k + power - 1] * s
-    row = np.where(after, times.shape[1] - 1, j)  # past the last node: its state
+            np.multiply(weights[:, k + power - 1], s, out=weights[:, k + power])
+    row = np.where(after, count - 1, j)
     matrix = sparse.csr_matrix((weights.ravel(), ((8 * row)[:, None] + np.arange(8)).ravel(),
-                                np.arange(0, 8 * s.size + 1, 8)), shape=(s.size, table.shape[0]))
-    return (matrix @ table).T
+                                np.arange(0, 8 * s.size + 1, 8)), shape=(s.size, 8 * count))
+    return (matrix @ table.reshape(8 * count, sets)).T
 
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
@@ -624,12 +626,14 @@ def _neighbour_swings(t, final, a, b, c, omega):
             break
         length = np.where(velocity == 0.0, _SWING_PIECES[0], _SWING_PIECES[1]) * (
             math.pi / omega)
-        _, x, v = _swing_nodes(position[:1], velocity[:1], length[:1], omega[:1], a[:1],
-                               b[:1], c[:1])
-        residual, jacobian = _swing_equations(np.repeat(x, m, axis=0),
-                                              np.repeat(v, m, axis=0), position, velocity,
-                                              length, omega, a, b, c, sense[:, None])
-        step = np.linalg.solve(jacobian[0], residual[1:].T).T
+        _, x, v, jacobian = _swing_nodes(position[:1], velocity[:1], length[:1],
+                                         omega[:1], a[:1], b[:1], c[:1])
+        residual, _ = _swing_equations(np.repeat(x, m - 1, axis=0),
+                                       np.repeat(v, m - 1, axis=0), *(
+                                           k[1:] for k in (position, velocity, length,
+                                                           omega, a, b, c)),
+                                       sense[1:, None], jacobian=False)
+        step = np.linalg.solve(jacobian[0], residual.T).T
         x = np.vstack([x, x - step[:, :n]]) @ _SWING_FIT.T  # Chebyshev coefficients
         v = np.vstack([v, v - step[:, n:]]) @ _SWING_FIT.T
         span = _reversal(_Interpolant(v[0], length[0]), sense[0], length[0])
@@ -681,7 +685,7 @@ def _swing_piece(x0, v0, length, omega, a, b, c):
     """A piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set: the time
     to the reversal of the velocity within it (``length`` where there is none), and x
     and xdot as functions of the time since its start."""
-    sense, x, v = _swing_nodes(x0, v0, length, omega, a, b, c)
+    sense, x, v, _ = _swing_nodes(x0, v0, length, omega, a, b, c)
     x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
     v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
     spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
@@ -689,9 +693,10 @@ def _swing_piece(x0, v0, length, omega, a, b, c):
 
 
 def _swing_nodes(x0, v0, length, omega, a, b, c):
-    """The sense of the velocity (shape (m, 1)) and x and xdot at the collocation points
-    of a piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set, by
-    Newton's method from a cosine about the centre of the friction at its start."""
+    """The sense of the velocity (shape (m, 1)), x and xdot at the collocation points of
+    a piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set, by Newton's
+    method from a cosine about the centre of the friction at its start, and the
+    equations' Jacobian at the last step."""
     sense = np.where(v0 != 0.0, np.sign(v0), -np.sign(x0))[:, None]  # of the velocity
     size = np.hypot(x0, v0 / omega)
     centre = -sense[:, 0] * _HALF_PI / omega * (c + size * (b + a * size))
@@ -711,27 +716,33 @@ def _swing_nodes(x0, v0, length, omega, a, b, c):
         if change <= 1e-14 or change > 0.5 * last:
             break
         last = change
-    return sense, x, v
+    return sense, x, v, jacobian
 
 
-def _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense):
-    """Residuals (shape (m, 2*_SWING_NODES)) and Jacobian of a piece's collocation
-    equations x = x0 + integral of xdot, xdot = xdot0 + integral of the force."""
+def _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense, jacobian=True):
+    """Residuals (shape (m, 2*_SWING_NODES)) of a piece's collocation equations
+    x = x0 + integral of xdot, xdot = xdot0 + integral of the force, and their Jacobian
+    (None unless ``jacobian``)."""
     push = sense * (_HALF_PI * omega)[:, None]
     w2 = (omega * omega)[:, None]
-    scale = length[:, None, None] * _SWING_INTEGRATE  # integrates node values from 0
     a3, b3, c3 = a[:, None], b[:, None], c[:, None]
     amplitude = np.maximum(np.sqrt(x * x + v * v / w2), 1e-300)
     force = -w2 * x - push * (c3 + amplitude * (b3 + a3 * amplitude))
-    slope = push * (b3 + 2 * a3 * amplitude) / amplitude
-    residual = np.concatenate([x - x0[:, None] - np.einsum("mij,mj->mi", scale, v),
-                               v - v0[:, None] - np.einsum("mij,mj->mi", scale, force)],
+    span = length[:, None]
+    residual = np.concatenate([x - x0[:, None] - span * (v @ _SWING_INTEGRATE.T),
+                               v - v0[:, None] - span * (force @ _SWING_INTEGRATE.T)],
                               axis=1)
-    identity = np.broadcast_to(np.eye(_SWING_NODES), scale.shape)
-    jacobian = np.block([[identity, -scale],
-                         [-scale * (-w2 - slope * x)[:, None, :],
-                          identity - scale * (-slope * v / w2)[:, None, :]]])
-    return residual, jacobian
+    if not jacobian:
+        return residual, None
+    n = _SWING_NODES
+    slope = push * (b3 + 2 * a3 * amplitude) / amplitude
+    scale = span[..., None] * _SWING_INTEGRATE  # integrates node values from 0
+    matrix = np.empty((x.shape[0], 2 * n, 2 * n))
+    matrix[:, :n, :n] = np.eye(n)
+    matrix[:, :n, n:] = -scale
+    matrix[:, n:, :n] = scale * (w2 + slope * x)[:, None, :]
+    matrix[:, n:, n:] = np.eye(n) + scale * (slope * v / w2)[:, None, :]
+    return residual, matrix
 
 
 class _Interpolant:
