@@ -547,6 +547,8 @@ _SWING_S, _SWING_INTEGRATE, _ = _chebyshev_matrices(_SWING_NODES, 2)
 # Node values -> Chebyshev coefficients on the piece.
 _SWING_FIT = np.polynomial.chebyshev.chebfit(2 * _SWING_S - 1, np.eye(_SWING_NODES),
                                              _SWING_NODES - 1)
+# Coefficients -> those of the derivative (in the variable on [-1, 1]).
+_SWING_DERIVATIVE = np.polynomial.chebyshev.chebder(np.eye(_SWING_NODES))
 # Coefficients -> values at the 33 points of a piece where a reversal is looked for.
 _SWING_GRID = np.polynomial.chebyshev.chebvander(np.linspace(-1.0, 1.0, 33),
                                                  _SWING_NODES - 1)
@@ -644,7 +646,7 @@ def _neighbour_swings(t, final, a, b, c, omega):
         spans = np.full(m, span) if turns else length
         if turns:
             at = 2 * span / length - 1
-            rate = chebyshev.chebval(at, chebyshev.chebder(v.T), tensor=False) * 2 / length
+            rate = chebyshev.chebval(at, _SWING_DERIVATIVE @ v.T, tensor=False) * 2 / length
             spans = span - chebyshev.chebval(at, v.T, tensor=False) / rate
             spans[0] = span
         pieces.append((now.copy(), length, x))
@@ -673,7 +675,7 @@ def _neighbour_values(local, offset, pieces, end, position):
         at = 2 * (local[low:high] - start[0]) / length[0] - 1
         basis = chebyshev.chebvander(at, _SWING_NODES - 1)
         values = basis @ coefficients.T
-        rate = basis[:, :-1] @ chebyshev.chebder(coefficients[0])
+        rate = basis[:, :-1] @ (_SWING_DERIVATIVE @ coefficients[0])
         shift = 2 * (local[low:high, None] + offset[1:] - start[1:]) / length[1:] - 1
         x[low:high] = values[:, 0]
         changes[:, low:high] = (values[:, 1:] - values[:, :1]
@@ -756,7 +758,7 @@ class _Interpolant:
                                                self.coefficients)
 
     def derivative(self):
-        return _Interpolant(np.polynomial.chebyshev.chebder(self.coefficients)
+        return _Interpolant(_SWING_DERIVATIVE @ self.coefficients
                             * (2 / self.length), self.length)
 
 
