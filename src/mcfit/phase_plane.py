@@ -68,16 +68,27 @@ _S, _INTEGRATE, _EVALUATE = _chebyshev_matrices(NODES, FINE)
 _FINE_S = np.linspace(0.0, 1.0, FINE)
 
 
-def _rates(amplitude, phi, omega, a, b, c):
-    """dA/dphi and dt/dphi, with d(dA/dphi)/dA, for arrays of states and parameter sets."""
+def _rates(amplitude, phi, omega, a, b, c, trig=None, derivative=True):
+    """dA/dphi and dt/dphi, with d(dA/dphi)/dA (None unless ``derivative``), for arrays
+    of states and parameter sets; ``trig``: cos and sin of ``phi`` where known."""
     safe = np.maximum(amplitude, 1e-100)
     friction = c + safe * (b + a * safe)
-    cos, sin = np.cos(phi), np.sin(phi)
+    cos, sin = (np.cos(phi), np.sin(phi)) if trig is None else trig
     denominator = np.maximum(omega - _HALF_PI * friction / safe * cos, 1e-9 * omega)
     slope = -_HALF_PI * friction * sin / denominator
+    if not derivative:
+        return slope, 1.0 / denominator, None
     d_denominator = -_HALF_PI * (a - c / (safe * safe)) * cos
     d_slope = -_HALF_PI * sin * ((b + 2 * a * safe) - friction * d_denominator / denominator)
     return slope, 1.0 / denominator, d_slope / denominator
+
+
+def _trig(phases):
+    """cos and sin of ``phases`` (m, count, k) of sets that differ in their first
+    half-cycle only (:func:`_grid`): the others' are set 0's."""
+    m, count, k = phases.shape
+    return tuple(np.concatenate([f(phases[:, :1]), np.broadcast_to(
+        f(phases[:1, 1:]), (m, count - 1, k))], axis=1) for f in (np.cos, np.sin))
 
 
 def phase_plane_motion(t, y0, theta0, omega, a, b, c):
@@ -277,16 +288,18 @@ def _chord(first, y0, phi0, omega, a, b, c):
     start_phi, length, phases = _grid(count, phi0)
     omega3 = omega[..., None]
     held = np.broadcast_to(held, (y0.shape[0], count))
-    _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free)
+    trig = _trig(phases)
+    _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free,
+                           trig=(trig[0][:1], trig[1][:1]))
     jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
     free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    slope, _, _ = _rates(amplitudes, phases, omega3, *free)
+    slope, _, _ = _rates(amplitudes, phases, omega3, *free, trig=trig, derivative=False)
     residual = _residual(amplitudes, y0, length, slope)
     both = np.linalg.solve(jacobian, np.concatenate(
         [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
     own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
     guess = amplitudes + _steps(own, carried)
-    _, time_rate, _ = _rates(guess, phases, omega3, *free)
+    _, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
             _begins(length, time_rate, held), time_rate, free)
 
@@ -412,11 +425,12 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         guess = np.repeat(decay.amplitude(elapsed, y0, a, b, c)[..., None], _S.size, axis=2)
     omega3 = omega[..., None]
     identity, ones = np.eye(_S.size), np.ones(guess.shape)
+    trig = (np.cos(phases), np.sin(phases))
     held_before, steady = None, 0
     for _ in range(_GLOBAL_ITERATIONS):
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
         free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-        slope, time_rate, d_slope = _rates(guess, phases, omega3, *free)
+        slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
         residual = _residual(guess, y0, length, slope)
         jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
         both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
@@ -439,7 +453,7 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         return None
     held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
     free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    _, time_rate, _ = _rates(guess, phases, omega3, *free)
+    _, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
     begins = _begins(length, time_rate, held)
     finished = held | (begins >= t_end)
     if not np.all(np.any(finished, axis=1) | (begins[:, -1] + length[:, -1, 0] * (
@@ -469,7 +483,8 @@ def _fine_nodes(solved, base, phi, omega, a, b, c):
     fine_a = amplitudes @ _EVALUATE.T
     fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T
     fine_phi = start_phi + length * _FINE_S
-    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free)
+    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free,
+                                 trig=_trig(fine_phi), derivative=False)
     total = base[..., None] + np.arange(count)[:, None] * math.pi + fine_phi
     first = np.where(np.any(finished, axis=1), np.argmax(finished, axis=1), count)
     rows = np.arange(m)
