@@ -122,3 +122,18 @@ def test_final_swings_of_another_kind_are_not_neighbours():
     assert phase_plane._neighbour_swings(t[t >= 3.0], final, np.zeros(2),
                                          np.array([0.95, 0.95]), np.array([0.043, 0.3]),
                                          np.full(2, OMEGA)) is None
+
+
+def test_final_swings_started_from_the_last_call_are_the_same():
+    """The last swings of a stop, started from the last call's (``memory``), as from
+    their own start."""
+    t = np.linspace(0.0, 8.0, 1601)
+    parameters = np.array([1.0, 0.2, OMEGA, 0.0, 1.2, 0.05])
+    steps = 1e-7 * np.eye(6)[[0, 1, 2, 4, 5]]
+    memory = {}
+    phase_plane.phase_plane_differences(t, parameters * (1 + 1e-5), steps, memory)
+    assert len(memory["swings"]) == 3  # three pieces of swings after the stop
+    warm = phase_plane.phase_plane_differences(t, parameters, steps, memory)
+    cold = phase_plane.phase_plane_differences(t, parameters, steps)
+    np.testing.assert_allclose(warm[0], cold[0], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(warm[1], cold[1], rtol=0, atol=1e-14)

@@ -189,7 +189,8 @@ def phase_plane_differences(t, parameters, steps, memory=None):
         swung = None
         if np.isfinite(stops[0]) and t[-1] >= stops[0]:
             late = t >= stops[0]
-            swung = _neighbour_swings(t[late], final, a[:, 0], b[:, 0], c[:, 0], omega[:, 0])
+            swung = _neighbour_swings(t[late], final, a[:, 0], b[:, 0], c[:, 0], omega[:, 0],
+                                      memory)
         if swung is not None:
             x[late], changes[:, late] = swung
         elif np.any(np.isfinite(stops)) and t[-1] >= np.min(stops):
@@ -618,7 +619,7 @@ def _final_swings(t, final, a, b, c, omega):
     return found
 
 
-def _neighbour_swings(t, final, a, b, c, omega):
+def _neighbour_swings(t, final, a, b, c, omega, memory=None):
     """As :func:`_final_swings` for sets that are small changes of set 0 (a Jacobian's
     moved sets): x of set 0 at the times ``t >= final[0, 0]``, and each other set's
     change there, shape (m - 1, n), to first order in the changes; None where a set's
@@ -627,7 +628,10 @@ def _neighbour_swings(t, final, a, b, c, omega):
     Set 0's pieces are solved as :func:`_final_swings` solves them; the others take one
     Newton step from them with set 0's Jacobian, and their reversals one from set 0's.
     Each set's polynomial is evaluated at set 0's position in the piece, plus set 0's
-    rate there times the difference of the positions."""
+    rate there times the difference of the positions. Set 0's pieces of the last call,
+    kept in ``memory``, start Newton's method where they start nearly alike."""
+    memory = {} if memory is None else memory
+    last, kept = memory.get("swings", []), []
     m, n = final.shape[0], _SWING_NODES
     now = np.zeros(m)
     position, velocity = final[:, 2] * final[:, 1], np.zeros(m)
@@ -645,8 +649,13 @@ def _neighbour_swings(t, final, a, b, c, omega):
             break
         length = np.where(velocity == 0.0, _SWING_PIECES[0], _SWING_PIECES[1]) * (
             math.pi / omega)
+        state = np.array([position[0], velocity[0] / omega[0], length[0] * omega[0]])
+        near = len(kept) < len(last) and np.max(np.abs(last[len(kept)][0] - state)) <= (
+            1e-3 * (abs(state[0]) + abs(state[1])))
         _, x, v, jacobian = _swing_nodes(position[:1], velocity[:1], length[:1],
-                                         omega[:1], a[:1], b[:1], c[:1])
+                                         omega[:1], a[:1], b[:1], c[:1],
+                                         last[len(kept)][1] if near else None)
+        kept.append((state, (x, v)))
         residual, _ = _swing_equations(np.repeat(x, m - 1, axis=0),
                                        np.repeat(v, m - 1, axis=0), *(
                                            k[1:] for k in (position, velocity, length,
@@ -673,6 +682,7 @@ def _neighbour_swings(t, final, a, b, c, omega):
         now = now + spans
     else:
         raise RuntimeError("the final swings did not stop")  # pragma: no cover
+    memory["swings"] = kept
     return _neighbour_values(t - final[0, 0], final[0, 0] - final[:, 0], pieces, now[0],
                              position)
 
@@ -711,19 +721,22 @@ def _swing_piece(x0, v0, length, omega, a, b, c):
     return spans, x_of, v_of
 
 
-def _swing_nodes(x0, v0, length, omega, a, b, c):
+def _swing_nodes(x0, v0, length, omega, a, b, c, guess=None):
     """The sense of the velocity (shape (m, 1)), x and xdot at the collocation points of
     a piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set, by Newton's
-    method from a cosine about the centre of the friction at its start, and the
-    equations' Jacobian at the last step."""
+    method from ``guess`` (x and xdot at the nodes) or a cosine about the centre of the
+    friction at its start, and the equations' Jacobian at the last step."""
     sense = np.where(v0 != 0.0, np.sign(v0), -np.sign(x0))[:, None]  # of the velocity
     size = np.hypot(x0, v0 / omega)
-    centre = -sense[:, 0] * _HALF_PI / omega * (c + size * (b + a * size))
-    phase = omega[:, None] * length[:, None] * _SWING_S
-    x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
-         + (v0 / omega)[:, None] * np.sin(phase))
-    v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
-         + v0[:, None] * np.cos(phase))
+    if guess is not None:
+        x, v = guess
+    else:
+        centre = -sense[:, 0] * _HALF_PI / omega * (c + size * (b + a * size))
+        phase = omega[:, None] * length[:, None] * _SWING_S
+        x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
+             + (v0 / omega)[:, None] * np.sin(phase))
+        v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
+             + v0[:, None] * np.cos(phase))
     n = _SWING_NODES
     last = math.inf
     for _ in range(_SWING_ITERATIONS):
