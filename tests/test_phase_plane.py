@@ -137,3 +137,21 @@ def test_final_swings_started_from_the_last_call_are_the_same():
     cold = phase_plane.phase_plane_differences(t, parameters, steps)
     np.testing.assert_allclose(warm[0], cold[0], rtol=0, atol=1e-14)
     np.testing.assert_allclose(warm[1], cold[1], rtol=0, atol=1e-14)
+
+
+def test_sets_whose_swings_differ_in_kind_are_swung_one_by_one(monkeypatch):
+    """Where the sets' final swings are not neighbours, each set's own (differences of
+    the motion, as before)."""
+    t = np.linspace(0.0, 8.0, 1601)
+    parameters = np.array([1.0, 0.2, OMEGA, 0.0, 1.2, 0.05])
+    steps = 1e-7 * np.eye(6)[[0, 1, 2, 4, 5]]
+    fast = phase_plane.phase_plane_differences(t, parameters, steps)
+    monkeypatch.setattr(phase_plane, "_neighbour_swings", lambda *args: None)
+    x, changes = phase_plane.phase_plane_differences(t, parameters, steps)
+    moved = phase_plane.phase_plane_motion(t, *(parameters + np.vstack([np.zeros(6),
+                                                                        steps])).T)
+    np.testing.assert_allclose(x, moved[0], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(x, fast[0], rtol=0, atol=1e-13)
+    scale = np.max(np.abs(moved[1:] - moved[0]), axis=1)[:, None]
+    assert np.max(np.abs(changes - (moved[1:] - moved[0])) / scale) < 1e-5
+    assert np.max(np.abs(changes - fast[1]) / scale) < 1e-5
