@@ -159,8 +159,10 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     Jacobian (the chord method: the error is of the order of the squared step). Their
     change at fixed time is the interpolant's, differentiated in its nodes
     (:func:`_linear_changes`), at any damping. The last swings of a decay that stops are
-    integrated for every set; where a moved set counts its half-cycles from another
-    multiple of pi, every set is solved on its own and the changes are differences of
+    solved for set 0 and followed to first order by the others
+    (:func:`_neighbour_swings`), or for every set on its own where a set's swings differ
+    in kind; where a moved set counts its half-cycles from another multiple of pi, every
+    set is solved on its own and the changes are differences of
     :func:`phase_plane_motion`.
     """
     t = np.asarray(t, dtype=float)
