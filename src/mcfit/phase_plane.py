@@ -251,7 +251,7 @@ def _linear_changes(nodes, j, s, amplitude, phase, after):
     matrix = sparse.csr_matrix((weights.ravel(), ((8 * row)[:, None] + np.arange(
         8, dtype=np.int32)).ravel(), np.arange(0, 8 * s.size + 1, 8, dtype=np.int32)),
         shape=(s.size, 8 * count))
-    return (matrix @ table.reshape(8 * count, sets)).T
+    return np.ascontiguousarray((matrix @ table.reshape(8 * count, sets)).T)
 
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
