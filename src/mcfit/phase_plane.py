@@ -186,7 +186,7 @@ def phase_plane_differences(t, parameters, steps, memory=None):
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
         j, s, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
         x = amplitude * np.cos(phase)
-        changes = _linear_changes(nodes, j, s, amplitude, phase, t >= nodes[0][0, -1])
+        changes = _linear_changes(nodes, j, s, amplitude, phase)
         stops = final[:, 0]
         swung = None
         if np.isfinite(stops[0]) and t[-1] >= stops[0]:
@@ -206,52 +206,49 @@ def phase_plane_differences(t, parameters, steps, memory=None):
             np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
 
 
-def _linear_changes(nodes, j, s, amplitude, phase, after):
+def _linear_changes(nodes, j, s, amplitude, phase):
     """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
     ``j`` of set 0 at position ``s``, where set 0 has ``amplitude`` and total ``phase``:
     the cubic Hermite interpolant of :func:`_interpolated` differentiated in its nodes'
-    times, values and rates, exact to first order in their changes; past the last node
-    (``after``), the change of its state.
+    times, values and rates, exact to first order in their changes (past the last node,
+    at rest, the change of its state).
 
-    In each interval the change of phase or amplitude at a fixed time is a cubic in s:
-    its four coefficients per interval, then one sparse row per sample weighs them."""
+    In an interval the change of phase or amplitude at a fixed time is itself a cubic
+    Hermite interpolant in s: of its changes at fixed time at the two nodes and of its
+    slopes in s there (the nodes' rates' changes, less the interpolant's second
+    derivative times the nodes' shifts in time). Those per node and interval, then one
+    sparse row per sample weighs them."""
     times = nodes[0]
     count, sets = times.shape[1], times.shape[0] - 1
     span = np.diff(times[0])
     width = np.where(span > 0, span, 1.0)[:, None]
     shift = times.T[:, 1:] - times.T[:, :1]  # (nodes, sets)
-    start, apart = shift[:-1], shift[:-1] - shift[1:]
-    # Per interval and set, the coefficients of s**0..3 of the phase's change, then the
-    # amplitude's; the last row, past the last node, the change of its state.
-    table = np.zeros((count, 8, sets))
-    for k, (value, rate) in ((0, (nodes[1].T, nodes[3].T)), (4, (nodes[2].T, nodes[4].T))):
-        p, m0, m1 = value[:, :1], rate[:-1, :1], rate[1:, :1]
-        change = value[:, 1:] - p
+    # Per node and set: for the phase, then the amplitude, the change at fixed time, and
+    # the slopes in s at the start and at the end of the interval the node starts.
+    table = np.zeros((count, 6, sets))
+    for k, (value, rate) in ((0, (nodes[1].T, nodes[3].T)), (3, (nodes[2].T, nodes[4].T))):
+        p, m = value[:, :1], rate[:, :1]
+        m0, m1, mean = m[:-1], m[1:], (p[1:] - p[:-1]) / width
         rate_change = rate[:, 1:] - rate[:, :1]
-        r0, r1 = rate_change[:-1] * width, rate_change[1:] * width
-        jump = change[1:] - change[:-1]
-        mean = (p[1:] - p[:-1]) / width
-        # The interpolant's rate in s is m0 + linear*s + square*s**2 (per unit time); the
-        # sample's s moves with the nodes' times, and the interpolant with the width.
-        linear, square = 6 * mean - 4 * m0 - 2 * m1, 3 * (m0 + m1) - 6 * mean
-        table[:-1, k] = change[:-1] - m0 * start
-        table[-1, k] = change[-1]
-        table[:-1, k + 1] = r0 - linear * start
-        table[:-1, k + 2] = (3 * jump - 2 * r0 - r1 + (linear + 2 * m0 + m1) * apart
-                             - square * start)
-        table[:-1, k + 3] = r0 + r1 - 2 * jump + (square - m0 - m1) * apart
+        np.subtract(value[:, 1:] - p, m * shift, out=table[:, k])
+        # The interpolant's second derivative in s (per unit time) at either end.
+        np.subtract(rate_change[:-1] * width, (6 * mean - 4 * m0 - 2 * m1) * shift[:-1],
+                    out=table[:-1, k + 1])
+        np.subtract(rate_change[1:] * width, (2 * m0 + 4 * m1 - 6 * mean) * shift[1:],
+                    out=table[:-1, k + 2])
+    s2 = s * s
+    s3 = s2 * s
+    basis = (2 * s3 - 3 * s2 + 1, 3 * s2 - 2 * s3, s3 - 2 * s2 + s, s3 - s2)
     weights = np.empty((s.size, 8))
-    weights[:, 0] = -amplitude * np.sin(phase)  # dx/dphase
-    weights[:, 4] = np.cos(phase)  # dx/damplitude
-    for k in (0, 4):
-        for power in (1, 2, 3):
-            np.multiply(weights[:, k + power - 1], s, out=weights[:, k + power])
-    # 32-bit indices, which scipy would otherwise make at thrice the product's cost.
-    row = np.where(after, count - 1, j).astype(np.int32)
-    matrix = sparse.csr_matrix((weights.ravel(), ((8 * row)[:, None] + np.arange(
-        8, dtype=np.int32)).ravel(), np.arange(0, 8 * s.size + 1, 8, dtype=np.int32)),
-        shape=(s.size, 8 * count))
-    return np.ascontiguousarray((matrix @ table.reshape(8 * count, sets)).T)
+    for k, dx in ((0, -amplitude * np.sin(phase)), (4, np.cos(phase))):  # dx/dphase, dA
+        for i, h in enumerate(basis):
+            np.multiply(dx, h, out=weights[:, k + i])
+    # Columns: the change at the interval's two nodes, then its two slopes; 32-bit
+    # indices, which scipy would otherwise make at thrice the product's cost.
+    at = 6 * j.astype(np.int32)[:, None] + np.array([0, 6, 1, 2, 3, 9, 4, 5], dtype=np.int32)
+    matrix = sparse.csr_matrix((weights.ravel(), at.ravel(), np.arange(
+        0, 8 * s.size + 1, 8, dtype=np.int32)), shape=(s.size, 6 * count))
+    return np.ascontiguousarray((matrix @ table.reshape(6 * count, sets)).T)
 
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
