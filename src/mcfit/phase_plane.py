@@ -184,9 +184,9 @@ def phase_plane_differences(t, parameters, steps, memory=None):
             return x[0], x[1:] - x[0]
         solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
-        j, s, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
+        j, basis, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
         x = amplitude * np.cos(phase)
-        changes = _linear_changes(nodes, j, s, amplitude, phase)
+        changes = _linear_changes(nodes, j, basis, amplitude, phase)
         stops = final[:, 0]
         swung = None
         if np.isfinite(stops[0]) and t[-1] >= stops[0]:
@@ -206,9 +206,10 @@ def phase_plane_differences(t, parameters, steps, memory=None):
             np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
 
 
-def _linear_changes(nodes, j, s, amplitude, phase):
+def _linear_changes(nodes, j, basis, amplitude, phase):
     """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
-    ``j`` of set 0 at position ``s``, where set 0 has ``amplitude`` and total ``phase``:
+    ``j`` of set 0 with Hermite ``basis`` there (:func:`_interpolated`), where set 0 has
+    ``amplitude`` and total ``phase``:
     the cubic Hermite interpolant of :func:`_interpolated` differentiated in its nodes'
     times, values and rates, exact to first order in their changes (past the last node,
     at rest, the change of its state).
@@ -236,10 +237,8 @@ def _linear_changes(nodes, j, s, amplitude, phase):
                     out=table[:-1, k + 1])
         np.subtract(rate_change[1:] * width, (2 * m0 + 4 * m1 - 6 * mean) * shift[1:],
                     out=table[:-1, k + 2])
-    s2 = s * s
-    s3 = s2 * s
-    basis = (2 * s3 - 3 * s2 + 1, 3 * s2 - 2 * s3, s3 - 2 * s2 + s, s3 - s2)
-    weights = np.empty((s.size, 8))
+    n = j.size
+    weights = np.empty((n, 8))
     for k, dx in ((0, -amplitude * np.sin(phase)), (4, np.cos(phase))):  # dx/dphase, dA
         for i, h in enumerate(basis):
             np.multiply(dx, h, out=weights[:, k + i])
@@ -247,7 +246,7 @@ def _linear_changes(nodes, j, s, amplitude, phase):
     # indices, which scipy would otherwise make at thrice the product's cost.
     at = 6 * j.astype(np.int32)[:, None] + np.array([0, 6, 1, 2, 3, 9, 4, 5], dtype=np.int32)
     matrix = sparse.csr_matrix((weights.ravel(), at.ravel(), np.arange(
-        0, 8 * s.size + 1, 8, dtype=np.int32)), shape=(s.size, 6 * count))
+        0, 8 * n + 1, 8, dtype=np.int32)), shape=(n, 6 * count))
     return np.ascontiguousarray((matrix @ table.reshape(6 * count, sets)).T)
 
 
@@ -836,21 +835,20 @@ def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):
 
 
 def _interpolated(t, times, phases, amplitudes, phase_rates, amplitude_rates):
-    """Interval index and position in it of each time, and the amplitude and total phase
-    there, from the nodes of one set."""
+    """Interval index of each time, the cubic Hermite basis at its position in it (h00,
+    h01, h10, h11 of s in [0, 1]), and the amplitude and total phase there, from the
+    nodes of one set."""
     j = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
     span = times[j + 1] - times[j]
     width = np.where(span > 0, span, 1.0)
     s = np.where(span > 0, np.clip((t - times[j]) / width, 0.0, 1.0), 0.0)
-    phase = _hermite(s, width, phases[j], phases[j + 1], phase_rates[j], phase_rates[j + 1])
-    amplitude = _hermite(s, width, amplitudes[j], amplitudes[j + 1], amplitude_rates[j],
-                         amplitude_rates[j + 1])
-    after = t >= times[-1]
-    return (j, s, np.where(after, amplitudes[-1], amplitude),
-            np.where(after, phases[-1], phase))
-
-
-def _hermite(s, width, p0, p1, m0, m1):
     s2, s3 = s * s, s * s * s
-    return ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * width * m0
-            + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * width * m1)
+    basis = (2 * s3 - 3 * s2 + 1, -2 * s3 + 3 * s2, s3 - 2 * s2 + s, s3 - s2)
+    slopes = (basis[2] * width, basis[3] * width)
+    phase = (basis[0] * phases[j] + slopes[0] * phase_rates[j] + basis[1] * phases[j + 1]
+             + slopes[1] * phase_rates[j + 1])
+    amplitude = (basis[0] * amplitudes[j] + slopes[0] * amplitude_rates[j]
+                 + basis[1] * amplitudes[j + 1] + slopes[1] * amplitude_rates[j + 1])
+    after = t >= times[-1]
+    return (j, basis, np.where(after, amplitudes[-1], amplitude),
+            np.where(after, phases[-1], phase))
