@@ -155,3 +155,20 @@ def test_sets_whose_swings_differ_in_kind_are_swung_one_by_one(monkeypatch):
     scale = np.max(np.abs(moved[1:] - moved[0]), axis=1)[:, None]
     assert np.max(np.abs(changes - (moved[1:] - moved[0])) / scale) < 1e-5
     assert np.max(np.abs(changes - fast[1]) / scale) < 1e-5
+
+
+def test_a_step_as_large_as_its_parameter_is_solved_on_its_own():
+    """A Coulomb coefficient of 1e-10 that is most of the friction near the stop, moved by
+    2.5e-10 (the difference step's floor, from a random record's fit): a chord step from
+    set 0 leaves large residuals (it ran off to 1e87), so every set is solved on its own
+    and the changes are differences of the motion."""
+    t = np.arange(359) * 6569.859235958306
+    parameters = np.array([2.481, 3.215, 1.077e-4, 9.672e-11, 6.441e-6, 1e-10])
+    steps = np.diag(1e-7 * np.maximum(np.abs(parameters),
+                                      [2.5e-3, 1.0, 0.0, 4e-4, 1e-3, 2.5e-3]))
+    x, changes = phase_plane.phase_plane_differences(t, parameters, steps, memory={})
+    moved = phase_plane.phase_plane_motion(t, *(parameters + np.vstack([np.zeros(6),
+                                                                        steps])).T)
+    np.testing.assert_allclose(x, moved[0], rtol=0, atol=1e-13)
+    expected = moved[1:] - moved[0]
+    assert np.max(np.abs(changes - expected)) < 1e-9 * np.max(np.abs(expected))

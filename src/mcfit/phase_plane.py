@@ -183,6 +183,9 @@ def phase_plane_differences(t, parameters, steps, memory=None):
                  if damped else phase_plane_motion(t, *sets.T))
             return x[0], x[1:] - x[0]
         solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
+        if solved is None:  # the steps are no derivatives: every set on its own
+            x = _motion(t, y0, theta0, omega, a, b, c, at_once=True)
+            return x[0], x[1:] - x[0]
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
         j, basis, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
         x = amplitude * np.cos(phase)
@@ -297,10 +300,25 @@ def _chord(first, y0, phi0, omega, a, b, c):
     both = np.linalg.solve(jacobian, np.concatenate(
         [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
     own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
-    guess = amplitudes + _steps(own, carried)
-    _, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
+    step = _steps(own, carried)
+    guess = amplitudes + step
+    slope, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
+    if not _small(_residual(guess, y0, length, slope), step, amplitudes):
+        return None
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
             _begins(length, time_rate, held), time_rate, free)
+
+
+def _small(residual, step, scale):
+    """Whether a chord step (each row a set) left residuals of the order of its square,
+    or of the rounding of values of ``scale``: where a set moves the solution by much of
+    itself (a parameter's step near its own size, as a small Coulomb coefficient's where
+    it dominates), the step is no derivative."""
+    rows = residual.reshape(residual.shape[0], -1)
+    steps = step.reshape(step.shape[0], -1)
+    floor = 1e-10 * np.max(np.abs(scale))  # the rounding of the equations, and more
+    return bool(np.all(np.isfinite(rows)) and np.all(
+        np.max(np.abs(rows), axis=1) <= 1e-3 * np.max(np.abs(steps), axis=1) + floor))
 
 
 def _fits_at_once(count, sets):
@@ -660,14 +678,19 @@ def _neighbour_swings(t, final, a, b, c, omega, memory=None):
                                                            omega, a, b, c)),
                                        sense[1:, None], jacobian=False)
         step = np.linalg.solve(jacobian[0], residual.T).T
-        x = np.vstack([x, x - step[:, :n]]) @ _SWING_FIT.T  # Chebyshev coefficients
-        v = np.vstack([v, v - step[:, n:]]) @ _SWING_FIT.T
+        moved = (x - step[:, :n], v - step[:, n:])
+        residual, _ = _swing_equations(*moved, *(k[1:] for k in (
+            position, velocity, length, omega, a, b, c)), sense[1:, None], jacobian=False)
+        if not _small(residual, step, np.concatenate([x, v * length[0]], axis=1)):
+            return None
+        x = np.vstack([x, moved[0]]) @ _SWING_FIT.T  # Chebyshev coefficients
+        v = np.vstack([v, moved[1]]) @ _SWING_FIT.T
         span = _reversal(_Interpolant(v[0], length[0]), sense[0], length[0])
         turns = span < length[0]
         reversing = np.any(sense[1:, None] * (v[1:] @ _SWING_GRID.T)[:, 1:] <= 0, axis=1)
         if np.any(reversing != turns):
             return None
-        spans = np.full(m, span) if turns else length
+        spans = length
         if turns:
             at = 2 * span / length - 1
             rate = chebyshev.chebval(at, _SWING_DERIVATIVE @ v.T, tensor=False) * 2 / length
