@@ -212,8 +212,7 @@ def phase_plane_differences(t, parameters, steps, memory=None):
 def _linear_changes(nodes, j, basis, amplitude, phase):
     """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
     ``j`` of set 0 with Hermite ``basis`` there (:func:`_interpolated`), where set 0 has
-    ``amplitude`` and total ``phase``:
-    the cubic Hermite interpolant of :func:`_interpolated` differentiated in its nodes'
+    ``amplitude`` and total ``phase``: the interpolant differentiated in its nodes'
     times, values and rates, exact to first order in their changes (past the last node,
     at rest, the change of its state).
 
@@ -235,7 +234,8 @@ def _linear_changes(nodes, j, basis, amplitude, phase):
         m0, m1, mean = m[:-1], m[1:], (p[1:] - p[:-1]) / width
         rate_change = rate[:, 1:] - rate[:, :1]
         np.subtract(value[:, 1:] - p, m * shift, out=table[:, k])
-        # The interpolant's second derivative in s (per unit time) at either end.
+        # The slopes: the rates' changes, less the derivative in s of the interpolant's
+        # rate at either end times the node's shift in time.
         np.subtract(rate_change[:-1] * width, (6 * mean - 4 * m0 - 2 * m1) * shift[:-1],
                     out=table[:-1, k + 1])
         np.subtract(rate_change[1:] * width, (2 * m0 + 4 * m1 - 6 * mean) * shift[1:],
