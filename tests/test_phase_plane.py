@@ -88,3 +88,87 @@ def test_the_final_swings_match_a_tight_integration(a, b, c, amplitude, sign):
                                       np.array([a, 0.1]), np.array([b, 0.5]),
                                       np.array([c, 0.1]), np.array([OMEGA, 6.0]))
     np.testing.assert_allclose(batch[0], x, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize(("a", "b", "c", "amplitude", "sign"), [
+    (0.0, 0.3, 0.2, 0.1, -1.0),      # one swing, then held
+    (0.0, 0.95, 0.043, 0.285, 1.0),  # several swings
+    (0.47, 0.27, 0.002, 0.197, 1.0),  # ten swings before the mass is held
+])
+def test_neighbouring_final_swings_are_their_changes_to_first_order(a, b, c, amplitude,
+                                                                    sign):
+    """Sets moved by about 1e-7 (stop time, amplitude, frequency, a, b, c): set 0's x as
+    :func:`phase_plane._final_swings` gives it, the others' changes within 1e-5 of the
+    changes of their own final swings (the difference of two solutions, each accurate
+    to its rounding)."""
+    t = np.linspace(0.0, 8.0, 1601)
+    steps = np.diag([1e-7, 1e-7, 1e-7, 1e-7, 1e-7, 1e-7])
+    base = np.array([3.0025, amplitude, OMEGA, a, b, c])  # between samples
+    sets = base + np.vstack([np.zeros(6), steps])
+    final = np.column_stack([sets[:, 0], sets[:, 1], np.full(7, sign)])
+    after = t >= 3.0025
+    x, changes = phase_plane._neighbour_swings(t[after], final, *sets[:, 3:].T,
+                                               sets[:, 2])
+    each = phase_plane._final_swings(t[after], final, *sets[:, 3:].T, sets[:, 2])
+    np.testing.assert_allclose(x, each[0], rtol=0, atol=1e-15)
+    expected = np.array([values - each[0] for values in each[1:]])
+    assert np.max(np.abs(changes - expected)) < 1e-5 * np.max(np.abs(expected))
+
+
+def test_final_swings_of_another_kind_are_not_neighbours():
+    """A set held a swing earlier than set 0 has no first-order change: None."""
+    t = np.linspace(0.0, 8.0, 1601)
+    final = np.array([[3.0, 0.285, 1.0], [3.0, 0.285, 1.0]])
+    assert phase_plane._neighbour_swings(t[t >= 3.0], final, np.zeros(2),
+                                         np.array([0.95, 0.95]), np.array([0.043, 0.3]),
+                                         np.full(2, OMEGA)) is None
+
+
+def test_final_swings_started_from_the_last_call_are_the_same():
+    """The last swings of a stop, started from the last call's (``memory``), as from
+    their own start."""
+    t = np.linspace(0.0, 8.0, 1601)
+    parameters = np.array([1.0, 0.2, OMEGA, 0.0, 1.2, 0.05])
+    steps = 1e-7 * np.eye(6)[[0, 1, 2, 4, 5]]
+    memory = {}
+    phase_plane.phase_plane_differences(t, parameters * (1 + 1e-5), steps, memory)
+    assert len(memory["swings"]) == 3  # three pieces of swings after the stop
+    warm = phase_plane.phase_plane_differences(t, parameters, steps, memory)
+    cold = phase_plane.phase_plane_differences(t, parameters, steps)
+    np.testing.assert_allclose(warm[0], cold[0], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(warm[1], cold[1], rtol=0, atol=1e-14)
+
+
+def test_sets_whose_swings_differ_in_kind_are_swung_one_by_one(monkeypatch):
+    """Where the sets' final swings are not neighbours, each set's own (differences of
+    the motion, as before)."""
+    t = np.linspace(0.0, 8.0, 1601)
+    parameters = np.array([1.0, 0.2, OMEGA, 0.0, 1.2, 0.05])
+    steps = 1e-7 * np.eye(6)[[0, 1, 2, 4, 5]]
+    fast = phase_plane.phase_plane_differences(t, parameters, steps)
+    monkeypatch.setattr(phase_plane, "_neighbour_swings", lambda *args: None)
+    x, changes = phase_plane.phase_plane_differences(t, parameters, steps)
+    moved = phase_plane.phase_plane_motion(t, *(parameters + np.vstack([np.zeros(6),
+                                                                        steps])).T)
+    np.testing.assert_allclose(x, moved[0], rtol=0, atol=1e-13)
+    np.testing.assert_allclose(x, fast[0], rtol=0, atol=1e-13)
+    scale = np.max(np.abs(moved[1:] - moved[0]), axis=1)[:, None]
+    assert np.max(np.abs(changes - (moved[1:] - moved[0])) / scale) < 1e-5
+    assert np.max(np.abs(changes - fast[1]) / scale) < 1e-5
+
+
+def test_a_step_as_large_as_its_parameter_is_solved_on_its_own():
+    """A Coulomb coefficient of 1e-10 that is most of the friction near the stop, moved by
+    2.5e-10 (the difference step's floor, from a random record's fit): a chord step from
+    set 0 leaves large residuals (it ran off to 1e87), so every set is solved on its own
+    and the changes are differences of the motion."""
+    t = np.arange(359) * 6569.859235958306
+    parameters = np.array([2.481, 3.215, 1.077e-4, 9.672e-11, 6.441e-6, 1e-10])
+    steps = np.diag(1e-7 * np.maximum(np.abs(parameters),
+                                      [2.5e-3, 1.0, 0.0, 4e-4, 1e-3, 2.5e-3]))
+    x, changes = phase_plane.phase_plane_differences(t, parameters, steps, memory={})
+    moved = phase_plane.phase_plane_motion(t, *(parameters + np.vstack([np.zeros(6),
+                                                                        steps])).T)
+    np.testing.assert_allclose(x, moved[0], rtol=0, atol=1e-13)
+    expected = moved[1:] - moved[0]
+    assert np.max(np.abs(changes - expected)) < 1e-9 * np.max(np.abs(expected))

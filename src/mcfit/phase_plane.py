@@ -20,7 +20,7 @@ Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md sectio
 The half-cycles are solved all at once, by one Newton iteration over all their
 collocation equations (:func:`_all_half_cycles`), started from the averaged law; the
 functions take arrays of parameter sets (shape (m,)). :func:`phase_plane_differences`
-gives a forward-difference Jacobian from one solution. numpy only.
+gives a forward-difference Jacobian from one solution. numpy and scipy.sparse only.
 """
 
 from __future__ import annotations
@@ -28,6 +28,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.polynomial import chebyshev
+from scipy import sparse
 
 from mcfit import decay
 
@@ -44,9 +46,6 @@ _GLOBAL_ITERATIONS = 60  # all at once; a stop guessed too early moves a half-cy
 # can creep at a constant rate and stall above the tolerance).
 _STALLED = 12
 _HALF_PI = 0.5 * math.pi
-# Above this damping ratio (Q below about 2.6) a half-cycle's changes in
-# phase_plane_differences are taken from every set's own interpolant.
-_STRONG = 0.3
 # Most values in one array of the all-at-once solution (2**21 floats: 16 MiB).
 _MAX_GRID = 1 << 21
 
@@ -69,16 +68,27 @@ _S, _INTEGRATE, _EVALUATE = _chebyshev_matrices(NODES, FINE)
 _FINE_S = np.linspace(0.0, 1.0, FINE)
 
 
-def _rates(amplitude, phi, omega, a, b, c):
-    """dA/dphi and dt/dphi, with d(dA/dphi)/dA, for arrays of states and parameter sets."""
+def _rates(amplitude, phi, omega, a, b, c, trig=None, derivative=True):
+    """dA/dphi and dt/dphi, with d(dA/dphi)/dA (None unless ``derivative``), for arrays
+    of states and parameter sets; ``trig``: cos and sin of ``phi`` where known."""
     safe = np.maximum(amplitude, 1e-100)
     friction = c + safe * (b + a * safe)
-    cos, sin = np.cos(phi), np.sin(phi)
+    cos, sin = (np.cos(phi), np.sin(phi)) if trig is None else trig
     denominator = np.maximum(omega - _HALF_PI * friction / safe * cos, 1e-9 * omega)
     slope = -_HALF_PI * friction * sin / denominator
+    if not derivative:
+        return slope, 1.0 / denominator, None
     d_denominator = -_HALF_PI * (a - c / (safe * safe)) * cos
     d_slope = -_HALF_PI * sin * ((b + 2 * a * safe) - friction * d_denominator / denominator)
     return slope, 1.0 / denominator, d_slope / denominator
+
+
+def _trig(phases):
+    """cos and sin of ``phases`` (m, count, k) of sets that differ in their first
+    half-cycle only (:func:`_grid`): the others' are set 0's."""
+    m, count, k = phases.shape
+    return tuple(np.concatenate([f(phases[:, :1]), np.broadcast_to(
+        f(phases[:1, 1:]), (m, count - 1, k))], axis=1) for f in (np.cos, np.sin))
 
 
 def phase_plane_motion(t, y0, theta0, omega, a, b, c):
@@ -147,11 +157,12 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     -----
     The moved sets take one Newton step from the solution at ``parameters`` with its
     Jacobian (the chord method: the error is of the order of the squared step). Their
-    change at fixed time is found at the nodes (the change of phase or amplitude less its
-    rate times the node's shift in time) and interpolated linearly between them, which
-    is within about 1e-4/Q of the change. The last swings of a decay that stops are
-    integrated for every set; where a moved set counts its half-cycles from another
-    multiple of pi, every set is solved on its own and the changes are differences of
+    change at fixed time is the interpolant's, differentiated in its nodes
+    (:func:`_linear_changes`), at any damping. The last swings of a decay that stops are
+    solved for set 0 and followed to first order by the others
+    (:func:`_neighbour_swings`), or for every set on its own where a set's swings differ
+    in kind; where a moved set counts its half-cycles from another multiple of pi, every
+    set is solved on its own and the changes are differences of
     :func:`phase_plane_motion`.
     """
     t = np.asarray(t, dtype=float)
@@ -172,45 +183,74 @@ def phase_plane_differences(t, parameters, steps, memory=None):
                  if damped else phase_plane_motion(t, *sets.T))
             return x[0], x[1:] - x[0]
         solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
+        if solved is None:  # the steps are no derivatives: every set on its own
+            x = _motion(t, y0, theta0, omega, a, b, c, at_once=True)
+            return x[0], x[1:] - x[0]
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
-        j, s, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
+        j, basis, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
         x = amplitude * np.cos(phase)
-        # Every set on its own in strongly damped half-cycles (the phase speed varies
-        # much, the linear interpolation less accurate) and the last swings of a stop.
-        strong = _damping_ratio(solved[0][0], a[0], b[0], c[0], omega[0]) > _STRONG
-        exact = strong[np.minimum(j // FINE, strong.size - 1)] | (t >= np.min(final[:, 0]))
-        changes = np.empty((len(sets) - 1, t.size))
-        if not np.all(exact):
-            rest = slice(None) if not np.any(exact) else ~exact
-            changes[:, rest] = _interpolated_changes(nodes, j[rest], s[rest],
-                                                     amplitude[rest], phase[rest])
-        if np.any(exact):
-            moved = _with_final_swing(t[exact], _sampled(t[exact], *nodes), final, (a, b, c),
-                                      omega[:, 0])
-            x[exact], changes[:, exact] = moved[0], moved[1:] - moved[0]
-    return (np.nan_to_num(x, nan=0.0, posinf=1e300, neginf=-1e300),
-            np.nan_to_num(changes, nan=0.0, posinf=1e300, neginf=-1e300))
+        changes = _linear_changes(nodes, j, basis, amplitude, phase)
+        stops = final[:, 0]
+        swung = None
+        if np.isfinite(stops[0]) and t[-1] >= stops[0]:
+            late = t >= stops[0]
+            swung = _neighbour_swings(t[late], final, a[:, 0], b[:, 0], c[:, 0], omega[:, 0],
+                                      memory)
+        if swung is not None:
+            x[late], changes[:, late] = swung
+        elif np.any(np.isfinite(stops)) and t[-1] >= np.min(stops):
+            # The last swings of a stop, of every set: its own motion up to its stop.
+            late = t >= np.min(stops)
+            moved = _with_final_swing(t[late], x[late] + np.vstack(
+                [np.zeros((1, int(np.sum(late)))), changes[:, late]]), final, (a, b, c),
+                omega[:, 0])
+            x[late], changes[:, late] = moved[0], moved[1:] - moved[0]
+    return (np.nan_to_num(x, copy=False, nan=0.0, posinf=1e300, neginf=-1e300),
+            np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
 
 
-def _interpolated_changes(nodes, j, s, amplitude, phase):
+def _linear_changes(nodes, j, basis, amplitude, phase):
     """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
-    ``j`` at position ``s``, where set 0 has ``amplitude`` and total ``phase``: the
-    changes of phase and amplitude at fixed time, at the nodes (the change less its rate
-    times the node's shift in time), interpolated linearly."""
-    shift = nodes[0][1:] - nodes[0][:1]
-    at_nodes = np.concatenate([nodes[k][1:] - nodes[k][:1] - nodes[k + 2][:1] * shift
-                               for k in (1, 2)])  # phase, then amplitude, at fixed time
-    # Past the last node s = 1 (or the last two nodes are the same state at rest).
-    at_samples = at_nodes[:, j] + s * np.diff(at_nodes, axis=1)[:, j]
-    return (at_samples[shift.shape[0]:] * np.cos(phase)
-            - at_samples[:shift.shape[0]] * (amplitude * np.sin(phase)))
+    ``j`` of set 0 with Hermite ``basis`` there (:func:`_interpolated`), where set 0 has
+    ``amplitude`` and total ``phase``: the interpolant differentiated in its nodes'
+    times, values and rates, exact to first order in their changes (past the last node,
+    at rest, the change of its state).
 
-
-def _damping_ratio(amplitudes, a, b, c, omega):
-    """The largest (pi/2)*g(A)/(omega*A) of each half-cycle (shape (count, NODES)): the
-    phase speed is omega*(1 -+ it) at the turning points."""
-    safe = np.maximum(amplitudes, 1e-100)
-    return np.max(_HALF_PI * (c + safe * (b + a * safe)) / (omega * safe), axis=1)
+    In an interval the change of phase or amplitude at a fixed time is itself a cubic
+    Hermite interpolant in s: of its changes at fixed time at the two nodes and of its
+    slopes in s there (the nodes' rates' changes, less the interpolant's second
+    derivative times the nodes' shifts in time). Those per node and interval, then one
+    sparse row per sample weighs them."""
+    times = nodes[0]
+    count, sets = times.shape[1], times.shape[0] - 1
+    span = np.diff(times[0])
+    width = np.where(span > 0, span, 1.0)[:, None]
+    shift = times.T[:, 1:] - times.T[:, :1]  # (nodes, sets)
+    # Per node and set: for the phase, then the amplitude, the change at fixed time, and
+    # the slopes in s at the start and at the end of the interval the node starts.
+    table = np.zeros((count, 6, sets))
+    for k, (value, rate) in ((0, (nodes[1].T, nodes[3].T)), (3, (nodes[2].T, nodes[4].T))):
+        p, m = value[:, :1], rate[:, :1]
+        m0, m1, mean = m[:-1], m[1:], (p[1:] - p[:-1]) / width
+        rate_change = rate[:, 1:] - rate[:, :1]
+        np.subtract(value[:, 1:] - p, m * shift, out=table[:, k])
+        # The slopes: the rates' changes, less the derivative in s of the interpolant's
+        # rate at either end times the node's shift in time.
+        np.subtract(rate_change[:-1] * width, (6 * mean - 4 * m0 - 2 * m1) * shift[:-1],
+                    out=table[:-1, k + 1])
+        np.subtract(rate_change[1:] * width, (2 * m0 + 4 * m1 - 6 * mean) * shift[1:],
+                    out=table[:-1, k + 2])
+    n = j.size
+    weights = np.empty((n, 8))
+    for k, dx in ((0, -amplitude * np.sin(phase)), (4, np.cos(phase))):  # dx/dphase, dA
+        for i, h in enumerate(basis):
+            np.multiply(dx, h, out=weights[:, k + i])
+    # Columns: the change at the interval's two nodes, then its two slopes; 32-bit
+    # indices, which scipy would otherwise make at thrice the product's cost.
+    at = 6 * j.astype(np.int32)[:, None] + np.array([0, 6, 1, 2, 3, 9, 4, 5], dtype=np.int32)
+    matrix = sparse.csr_matrix((weights.ravel(), at.ravel(), np.arange(
+        0, 8 * n + 1, 8, dtype=np.int32)), shape=(n, 6 * count))
+    return np.ascontiguousarray((matrix @ table.reshape(6 * count, sets)).T)
 
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
@@ -250,18 +290,35 @@ def _chord(first, y0, phi0, omega, a, b, c):
     start_phi, length, phases = _grid(count, phi0)
     omega3 = omega[..., None]
     held = np.broadcast_to(held, (y0.shape[0], count))
-    _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free)
+    trig = _trig(phases)
+    _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free,
+                           trig=(trig[0][:1], trig[1][:1]))
     jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
     free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    slope, _, _ = _rates(amplitudes, phases, omega3, *free)
+    slope, _, _ = _rates(amplitudes, phases, omega3, *free, trig=trig, derivative=False)
     residual = _residual(amplitudes, y0, length, slope)
     both = np.linalg.solve(jacobian, np.concatenate(
         [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
     own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
-    guess = amplitudes + _steps(own, carried)
-    _, time_rate, _ = _rates(guess, phases, omega3, *free)
+    step = _steps(own, carried)
+    guess = amplitudes + step
+    slope, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
+    if not _small(_residual(guess, y0, length, slope), step, amplitudes):
+        return None
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
             _begins(length, time_rate, held), time_rate, free)
+
+
+def _small(residual, step, scale):
+    """Whether a chord step (each row a set) left residuals of the order of its square,
+    or of the rounding of values of ``scale``: where a set moves the solution by much of
+    itself (a parameter's step near its own size, as a small Coulomb coefficient's where
+    it dominates), the step is no derivative."""
+    rows = residual.reshape(residual.shape[0], -1)
+    steps = step.reshape(step.shape[0], -1)
+    floor = 1e-10 * np.max(np.abs(scale))  # the rounding of the equations, and more
+    return bool(np.all(np.isfinite(rows)) and np.all(
+        np.max(np.abs(rows), axis=1) <= 1e-3 * np.max(np.abs(steps), axis=1) + floor))
 
 
 def _fits_at_once(count, sets):
@@ -385,11 +442,12 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         guess = np.repeat(decay.amplitude(elapsed, y0, a, b, c)[..., None], _S.size, axis=2)
     omega3 = omega[..., None]
     identity, ones = np.eye(_S.size), np.ones(guess.shape)
+    trig = (np.cos(phases), np.sin(phases))
     held_before, steady = None, 0
     for _ in range(_GLOBAL_ITERATIONS):
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
         free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-        slope, time_rate, d_slope = _rates(guess, phases, omega3, *free)
+        slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
         residual = _residual(guess, y0, length, slope)
         jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
         both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
@@ -412,7 +470,7 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
         return None
     held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
     free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    _, time_rate, _ = _rates(guess, phases, omega3, *free)
+    _, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
     begins = _begins(length, time_rate, held)
     finished = held | (begins >= t_end)
     if not np.all(np.any(finished, axis=1) | (begins[:, -1] + length[:, -1, 0] * (
@@ -442,7 +500,8 @@ def _fine_nodes(solved, base, phi, omega, a, b, c):
     fine_a = amplitudes @ _EVALUATE.T
     fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T
     fine_phi = start_phi + length * _FINE_S
-    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free)
+    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free,
+                                 trig=_trig(fine_phi), derivative=False)
     total = base[..., None] + np.arange(count)[:, None] * math.pi + fine_phi
     first = np.where(np.any(finished, axis=1), np.argmax(finished, axis=1), count)
     rows = np.arange(m)
@@ -522,6 +581,11 @@ _SWING_S, _SWING_INTEGRATE, _ = _chebyshev_matrices(_SWING_NODES, 2)
 # Node values -> Chebyshev coefficients on the piece.
 _SWING_FIT = np.polynomial.chebyshev.chebfit(2 * _SWING_S - 1, np.eye(_SWING_NODES),
                                              _SWING_NODES - 1)
+# Coefficients -> those of the derivative (in the variable on [-1, 1]).
+_SWING_DERIVATIVE = np.polynomial.chebyshev.chebder(np.eye(_SWING_NODES))
+# Coefficients -> values at the 33 points of a piece where a reversal is looked for.
+_SWING_GRID = np.polynomial.chebyshev.chebvander(np.linspace(-1.0, 1.0, 33),
+                                                 _SWING_NODES - 1)
 _SWING_PIECES = (1.0, 0.1)  # half periods: the first piece of a half-swing, the others
 _SWING_ITERATIONS = 30
 _MAX_PIECES = 400
@@ -571,36 +635,133 @@ def _final_swings(t, final, a, b, c, omega):
     return found
 
 
+def _neighbour_swings(t, final, a, b, c, omega, memory=None):
+    """As :func:`_final_swings` for sets that are small changes of set 0 (a Jacobian's
+    moved sets): x of set 0 at the times ``t >= final[0, 0]``, and each other set's
+    change there, shape (m - 1, n), to first order in the changes; None where a set's
+    swings differ in kind (reverse, or are held, in another piece).
+
+    Set 0's pieces are solved as :func:`_final_swings` solves them; the others take one
+    Newton step from them with set 0's Jacobian, and their reversals one from set 0's.
+    Each set's polynomial is evaluated at set 0's position in the piece, plus set 0's
+    rate there times the difference of the positions. Set 0's pieces of the last call,
+    kept in ``memory``, start Newton's method where they start nearly alike."""
+    memory = {} if memory is None else memory
+    last, kept = memory.get("swings", []), []
+    m, n = final.shape[0], _SWING_NODES
+    now = np.zeros(m)
+    position, velocity = final[:, 2] * final[:, 1], np.zeros(m)
+    end = t[-1] - final[0, 0]
+    pieces = []
+    for _ in range(_MAX_PIECES):
+        size = np.abs(position)
+        spring = omega * omega * size
+        held = (velocity == 0.0) & ((spring <= _HALF_PI * omega * c) | (
+            spring <= _HALF_PI * omega * (c + size * (b + a * size))))
+        sense = np.where(velocity != 0.0, np.sign(velocity), -np.sign(position))
+        if np.any(held != held[0]) or np.any(sense != sense[0]):
+            return None
+        if held[0] or now[0] >= end:
+            break
+        length = np.where(velocity == 0.0, _SWING_PIECES[0], _SWING_PIECES[1]) * (
+            math.pi / omega)
+        state = np.array([position[0], velocity[0] / omega[0], length[0] * omega[0]])
+        near = len(kept) < len(last) and np.max(np.abs(last[len(kept)][0] - state)) <= (
+            1e-3 * (abs(state[0]) + abs(state[1])))
+        _, x, v, jacobian = _swing_nodes(position[:1], velocity[:1], length[:1],
+                                         omega[:1], a[:1], b[:1], c[:1],
+                                         last[len(kept)][1] if near else None)
+        kept.append((state, (x, v)))
+        residual, _ = _swing_equations(np.repeat(x, m - 1, axis=0),
+                                       np.repeat(v, m - 1, axis=0), *(
+                                           k[1:] for k in (position, velocity, length,
+                                                           omega, a, b, c)),
+                                       sense[1:, None], jacobian=False)
+        step = np.linalg.solve(jacobian[0], residual.T).T
+        moved = (x - step[:, :n], v - step[:, n:])
+        residual, _ = _swing_equations(*moved, *(k[1:] for k in (
+            position, velocity, length, omega, a, b, c)), sense[1:, None], jacobian=False)
+        if not _small(residual, step, np.concatenate([x, v * length[0]], axis=1)):
+            return None
+        x = np.vstack([x, moved[0]]) @ _SWING_FIT.T  # Chebyshev coefficients
+        v = np.vstack([v, moved[1]]) @ _SWING_FIT.T
+        span = _reversal(_Interpolant(v[0], length[0]), sense[0], length[0])
+        turns = span < length[0]
+        reversing = np.any(sense[1:, None] * (v[1:] @ _SWING_GRID.T)[:, 1:] <= 0, axis=1)
+        if np.any(reversing != turns):
+            return None
+        spans = length
+        if turns:
+            at = 2 * span / length - 1
+            rate = chebyshev.chebval(at, _SWING_DERIVATIVE @ v.T, tensor=False) * 2 / length
+            spans = span - chebyshev.chebval(at, v.T, tensor=False) / rate
+            spans[0] = span
+        pieces.append((now.copy(), length, x))
+        at = 2 * spans / length - 1
+        position = chebyshev.chebval(at, x.T, tensor=False)
+        velocity = np.zeros(m) if turns else chebyshev.chebval(at, v.T, tensor=False)
+        now = now + spans
+    else:
+        raise RuntimeError("the final swings did not stop")  # pragma: no cover
+    memory["swings"] = kept
+    return _neighbour_values(t - final[0, 0], final[0, 0] - final[:, 0], pieces, now[0],
+                             position)
+
+
+def _neighbour_values(local, offset, pieces, end, position):
+    """x of set 0 at its times ``local`` since its stop, and the other sets' changes:
+    in each piece (start, length, coefficients of every set) each set's polynomial at
+    set 0's position in it plus set 0's rate times the shift of the position (the sets'
+    stops are ``offset`` before set 0's); from ``end`` on, held at ``position``."""
+    x = np.full(local.size, position[0])
+    changes = np.repeat((position[1:] - position[0])[:, None], local.size, axis=1)
+    ends = [start[0] for start, _, _ in pieces[1:]] + [end]
+    for (start, length, coefficients), stop in zip(pieces, ends):
+        low, high = np.searchsorted(local, [start[0], stop])
+        if high <= low:
+            continue
+        at = 2 * (local[low:high] - start[0]) / length[0] - 1
+        basis = chebyshev.chebvander(at, _SWING_NODES - 1)
+        values = basis @ coefficients.T
+        rate = basis[:, :-1] @ (_SWING_DERIVATIVE @ coefficients[0])
+        shift = 2 * (local[low:high, None] + offset[1:] - start[1:]) / length[1:] - 1
+        x[low:high] = values[:, 0]
+        changes[:, low:high] = (values[:, 1:] - values[:, :1]
+                                + rate[:, None] * (shift - at[:, None])).T
+    return x, changes
+
+
 def _swing_piece(x0, v0, length, omega, a, b, c):
     """A piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set: the time
     to the reversal of the velocity within it (``length`` where there is none), and x
     and xdot as functions of the time since its start."""
+    sense, x, v, _ = _swing_nodes(x0, v0, length, omega, a, b, c)
+    x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
+    v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
+    spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
+    return spans, x_of, v_of
+
+
+def _swing_nodes(x0, v0, length, omega, a, b, c, guess=None):
+    """The sense of the velocity (shape (m, 1)), x and xdot at the collocation points of
+    a piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set, by Newton's
+    method from ``guess`` (x and xdot at the nodes) or a cosine about the centre of the
+    friction at its start, and the equations' Jacobian at the last step."""
     sense = np.where(v0 != 0.0, np.sign(v0), -np.sign(x0))[:, None]  # of the velocity
-    push = sense * (_HALF_PI * omega)[:, None]
-    w2 = (omega * omega)[:, None]
-    scale = length[:, None, None] * _SWING_INTEGRATE  # integrates node values from 0
-    # The start: the friction held at its start value, a cosine about the moved centre.
     size = np.hypot(x0, v0 / omega)
-    centre = -push[:, 0] / w2[:, 0] * (c + size * (b + a * size))
-    phase = omega[:, None] * length[:, None] * _SWING_S
-    x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
-         + (v0 / omega)[:, None] * np.sin(phase))
-    v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
-         + v0[:, None] * np.cos(phase))
+    if guess is not None:
+        x, v = guess
+    else:
+        centre = -sense[:, 0] * _HALF_PI / omega * (c + size * (b + a * size))
+        phase = omega[:, None] * length[:, None] * _SWING_S
+        x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
+             + (v0 / omega)[:, None] * np.sin(phase))
+        v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
+             + v0[:, None] * np.cos(phase))
     n = _SWING_NODES
-    identity = np.broadcast_to(np.eye(n), scale.shape)
-    a3, b3, c3 = a[:, None], b[:, None], c[:, None]
     last = math.inf
     for _ in range(_SWING_ITERATIONS):
-        amplitude = np.maximum(np.sqrt(x * x + v * v / w2), 1e-300)
-        force = -w2 * x - push * (c3 + amplitude * (b3 + a3 * amplitude))
-        slope = push * (b3 + 2 * a3 * amplitude) / amplitude
-        residual = np.concatenate([x - x0[:, None] - np.einsum("mij,mj->mi", scale, v),
-                                   v - v0[:, None] - np.einsum("mij,mj->mi", scale, force)],
-                                  axis=1)
-        jacobian = np.block([[identity, -scale],
-                             [-scale * (-w2 - slope * x)[:, None, :],
-                              identity - scale * (-slope * v / w2)[:, None, :]]])
+        residual, jacobian = _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense)
         step = np.linalg.solve(jacobian, residual[..., None])[..., 0]
         x, v = x - step[:, :n], v - step[:, n:]
         change = np.max(np.abs(step)) / np.max(size)
@@ -608,10 +769,33 @@ def _swing_piece(x0, v0, length, omega, a, b, c):
         if change <= 1e-14 or change > 0.5 * last:
             break
         last = change
-    x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
-    v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
-    spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
-    return spans, x_of, v_of
+    return sense, x, v, jacobian
+
+
+def _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense, jacobian=True):
+    """Residuals (shape (m, 2*_SWING_NODES)) of a piece's collocation equations
+    x = x0 + integral of xdot, xdot = xdot0 + integral of the force, and their Jacobian
+    (None unless ``jacobian``)."""
+    push = sense * (_HALF_PI * omega)[:, None]
+    w2 = (omega * omega)[:, None]
+    a3, b3, c3 = a[:, None], b[:, None], c[:, None]
+    amplitude = np.maximum(np.sqrt(x * x + v * v / w2), 1e-300)
+    force = -w2 * x - push * (c3 + amplitude * (b3 + a3 * amplitude))
+    span = length[:, None]
+    residual = np.concatenate([x - x0[:, None] - span * (v @ _SWING_INTEGRATE.T),
+                               v - v0[:, None] - span * (force @ _SWING_INTEGRATE.T)],
+                              axis=1)
+    if not jacobian:
+        return residual, None
+    n = _SWING_NODES
+    slope = push * (b3 + 2 * a3 * amplitude) / amplitude
+    scale = span[..., None] * _SWING_INTEGRATE  # integrates node values from 0
+    matrix = np.empty((x.shape[0], 2 * n, 2 * n))
+    matrix[:, :n, :n] = np.eye(n)
+    matrix[:, :n, n:] = -scale
+    matrix[:, n:, :n] = scale * (w2 + slope * x)[:, None, :]
+    matrix[:, n:, n:] = np.eye(n) + scale * (slope * v / w2)[:, None, :]
+    return residual, matrix
 
 
 class _Interpolant:
@@ -625,7 +809,7 @@ class _Interpolant:
                                                self.coefficients)
 
     def derivative(self):
-        return _Interpolant(np.polynomial.chebyshev.chebder(self.coefficients)
+        return _Interpolant(_SWING_DERIVATIVE @ self.coefficients
                             * (2 / self.length), self.length)
 
 
@@ -674,21 +858,20 @@ def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):
 
 
 def _interpolated(t, times, phases, amplitudes, phase_rates, amplitude_rates):
-    """Interval index and position in it of each time, and the amplitude and total phase
-    there, from the nodes of one set."""
+    """Interval index of each time, the cubic Hermite basis at its position in it (h00,
+    h01, h10, h11 of s in [0, 1]), and the amplitude and total phase there, from the
+    nodes of one set."""
     j = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
     span = times[j + 1] - times[j]
     width = np.where(span > 0, span, 1.0)
     s = np.where(span > 0, np.clip((t - times[j]) / width, 0.0, 1.0), 0.0)
-    phase = _hermite(s, width, phases[j], phases[j + 1], phase_rates[j], phase_rates[j + 1])
-    amplitude = _hermite(s, width, amplitudes[j], amplitudes[j + 1], amplitude_rates[j],
-                         amplitude_rates[j + 1])
-    after = t >= times[-1]
-    return (j, s, np.where(after, amplitudes[-1], amplitude),
-            np.where(after, phases[-1], phase))
-
-
-def _hermite(s, width, p0, p1, m0, m1):
     s2, s3 = s * s, s * s * s
-    return ((2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * width * m0
-            + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * width * m1)
+    basis = (2 * s3 - 3 * s2 + 1, -2 * s3 + 3 * s2, s3 - 2 * s2 + s, s3 - s2)
+    slopes = (basis[2] * width, basis[3] * width)
+    phase = (basis[0] * phases[j] + slopes[0] * phase_rates[j] + basis[1] * phases[j + 1]
+             + slopes[1] * phase_rates[j + 1])
+    amplitude = (basis[0] * amplitudes[j] + slopes[0] * amplitude_rates[j]
+                 + basis[1] * amplitudes[j + 1] + slopes[1] * amplitude_rates[j + 1])
+    after = t >= times[-1]
+    return (j, basis, np.where(after, amplitudes[-1], amplitude),
+            np.where(after, phases[-1], phase))

@@ -77,11 +77,12 @@ class AmplitudeWaveform:
         tau = self.t - self.t0
         moved = [0, 1, 2] + list(range(5, p.size))
         motion, derivatives = self._motion_jacobian(tau, p, moved)
-        jacobian = np.empty((self.t.size, p.size))
-        jacobian[:, moved] = derivatives.T
-        jacobian[:, 3] = 1.0
-        jacobian[:, 4] = tau
-        return motion + p[3] + p[4] * tau, (p.copy(), jacobian / self.noise)
+        columns = np.empty((p.size, self.t.size))  # the Jacobian's columns, filled in rows
+        columns[moved] = derivatives
+        columns[3] = 1.0
+        columns[4] = tau
+        columns /= self.noise
+        return motion + p[3] + p[4] * tau, (p.copy(), columns.T)
 
     def _motion_jacobian(self, tau, p, moved):
         """The motion at ``p`` and its derivatives in the parameters of ``moved``, shape
@@ -91,7 +92,8 @@ class AmplitudeWaveform:
         motion, changes = phase_plane_differences(tau, self._motion(p[None])[0],
                                                   self._motion(np.diag(steps)[moved]),
                                                   self.memory)
-        return motion, changes / steps[moved, None]
+        changes /= steps[moved, None]
+        return motion, changes
 
 
 class VelocityWaveform(AmplitudeWaveform):
