@@ -9,7 +9,7 @@ waveform (issue 28), in one child process with one BLAS thread, CPU time.
   ``method="turning-points"`` one after the other, so that a drift of the machine's speed
   slows both alike: records per CPU second of each and their ratio.
 - **The waveform fit by Q:** :func:`mcfit.analysis.fit_both_forms` (both physical forms,
-  every candidate, as auto runs it) on records of 10^4 samples at Q = 2, 3, 5, 8, 10
+  as auto runs it) on records of 10^4 samples at Q = 2, 3, 5, 8, 10
   (b alone, and b with a Coulomb tenth of the first decay rate), long enough for the
   amplitude to fall to 1e-3 of y0 (at least 8 cycles), started from the turning-point
   fit: CPU milliseconds, the best of ``config.waveform_runs`` runs.
@@ -216,7 +216,7 @@ def format_waveform_speed(result: WaveformSpeed) -> str:
     refused = sum(r[4] is None or r[5] is None for r in result.mixed)
     if refused:
         lines.append(f"  ({refused} records refused by a method, left out)")
-    lines += ["", "  the waveform fit (both forms, every candidate) from the turning-point "
+    lines += ["", "  the waveform fit (both forms, as auto runs it) from the turning-point "
               "fit, CPU ms, best of "
               f"{result.config.waveform_runs}:",
               f"  {'Q':>4}" + "".join(f"{mix:>10}" for mix in WAVEFORM_MIXES)]

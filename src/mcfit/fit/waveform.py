@@ -53,6 +53,9 @@ _RANKING = {**_TOLERANCES, "ftol": 1e-6}
 # lower chi-square by less than _NEGLIGIBLE (half of the 1.97 below which a test is not
 # "near the threshold"; the AICc penalty of a term is 2).
 _DECISIVE = 60.0
+# The evaluations a form that sets no bar is fitted before its candidates are estimated
+# against the bar another form sets (rank_form's rival; _glimpse).
+_GLIMPSE = 4
 # Selected models of two forms whose AICc differ by no more than this cannot be told
 # apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
 FORM_TIE = 10.0
@@ -162,7 +165,9 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     """The candidate step of :func:`fit_waveform` in ``form``. With ``rival`` (another
     form's :class:`RankedForm`), the first model fitted is the one it selected, from its
     values, and the step stops where no candidate can come within :data:`FORM_TIE` of
-    its AICc (the candidates are then only those fitted so far and estimates)."""
+    its AICc (the candidates are then only those fitted so far and estimates): where the
+    rival describes the record within its noise, already after a few steps of the first
+    fit (:func:`_glimpse`)."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
@@ -181,12 +186,30 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
         vectors[first] = rival.candidates[first].internal
         bar = rival.aicc + FORM_TIE + _DECISIVE
         bar_fits = not _misfits(rival.candidates[rival.selection.model], tw.size)
-    candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
-    candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
+    candidates = solution = None
+    if bar_fits and forced is None:
+        vectors[first], candidates = _glimpse(waveforms, first, vectors[first], bar)
+    if candidates is None:
+        candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
+        candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
-    if selection.model == first:
+    if selection.model == first and solution is not None:
         return RankedForm(form, selection, candidates, waveforms[first], solution)
     return RankedForm(form, selection, candidates, kind(tw, xw, t0, selection.terms, noise))
+
+
+def _glimpse(waveforms, first, start, bar):
+    """(where a few steps of ``first``'s fit from ``start`` end, every candidate estimated
+    from there), the candidates None unless they show that no model of the form can come
+    below ``bar``: every estimate above it by more than twice what ``first`` is estimated
+    to gain still (an estimate from a point short of a minimum can fall short of what a
+    fit would reach)."""
+    partial = _ranked(waveforms[first], start, _TOLERANCES, _GLIMPSE)[0]
+    estimates = _estimates(waveforms[_largest(waveforms)], partial, set(waveforms))
+    gain = max(partial.aicc - estimates[first].aicc, 0.0)
+    if min(e.aicc for e in estimates.values()) <= bar + 2 * gain:
+        return partial.internal, None
+    return partial.internal, estimates
 
 
 def report_form(ranked, start):
@@ -388,14 +411,16 @@ def fit_candidate(waveform, start):
     return _ranked(waveform, start, _TOLERANCES)
 
 
-def _ranked(waveform, start, tolerances):
-    """The candidate fitted from ``start``, with the bounds and steps it sets."""
+def _ranked(waveform, start, tolerances, evaluations=200):
+    """The candidate fitted from ``start`` (in at most ``evaluations``), with the bounds
+    and steps it sets."""
     waveform.typical = _typical(start, waveform.terms)
     waveform.bounds = _bounds(start, waveform.terms)
     lower, upper = waveform.bounds
     result = optimize.least_squares(waveform.residual, np.clip(start, lower, upper),
                                     jac=waveform.jacobian, bounds=(lower, upper),
-                                    method="trf", x_scale="jac", max_nfev=200, **tolerances)
+                                    method="trf", x_scale="jac", max_nfev=evaluations,
+                                    **tolerances)
     return _candidate(waveform, result.x, float(2 * result.cost), bool(result.success),
                       int(result.nfev), np.linalg.pinv(result.jac.T @ result.jac)), result
 
