@@ -399,12 +399,16 @@ def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     if not ranked:
         raise FitError(f"no form of the waveform fit has the model {forced!r}",
                        option="model")
+    names = {"amplitude": "Eq. 20.55's amplitude forms", "velocity": "the velocity forms "
+             "(viscous, quadratic drag, sliding friction)"}
+    if len(ranked) == 1:
+        (only, alone), = ranked.items()
+        return replace(report_form(alone, start), damping_form_reason=(
+            f"only {names[only]} have the model {forced!r}"))
     scores = {form: r.aicc for form, r in ranked.items()}
     best, other = sorted(scores, key=scores.get)
     gap = scores[other] - scores[best]
     fit = report_form(ranked[best], start)
-    names = {"amplitude": "Eq. 20.55's amplitude forms", "velocity": "the velocity forms "
-             "(viscous, quadratic drag, sliding friction)"}
     if set(terms_of(fit.model)) <= {"c"}:
         return replace(fit, damping_form="cannot tell", damping_form_reason=(
             f"{names[best]} fit the waveform best, but sliding friction has one form only: "

@@ -167,7 +167,9 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     values, and the step stops where no candidate can come within :data:`FORM_TIE` of
     its AICc (the candidates are then only those fitted so far and estimates): where the
     rival describes the record within its noise, already after a few steps of the first
-    fit (:func:`_glimpse`)."""
+    fit (:func:`_glimpse`); where it does not, or where the model is forced (nothing
+    else is fitted then), its values may sit in a false minimum, and the first model is
+    fitted from the turning-point fit's values too, the better fit kept."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
@@ -190,10 +192,15 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     if bar_fits and forced is None:
         vectors[first], candidates = _glimpse(waveforms, first, vectors[first], bar)
     if candidates is None:
-        candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
+        begins = [vectors[first]]
+        if rival is not None and (forced or not bar_fits):  # a false minimum, maybe
+            begins.append(_start_vector(starts.get(first, starts.get(start.model)), nuisance,
+                                        first))
+        candidate, solution = min((_fitted_as_reported(waveforms[first], begin)
+                                   for begin in begins), key=lambda fit: fit[0].chi_square)
         candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
-    if selection.model == first and solution is not None:
+    if selection.model == first and solution is not None and candidates[first] is candidate:
         return RankedForm(form, selection, candidates, waveforms[first], solution)
     return RankedForm(form, selection, candidates, kind(tw, xw, t0, selection.terms, noise))
 
@@ -247,33 +254,51 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
     may. A model that adds terms to the best is fitted from its estimate (a small step
     from the best's solution), any other from its start in ``vectors``: from an
     estimate that drops terms, a model with sliding friction stopped at a kink of its
-    motion (where the swing that stops changes), far above its minimum. Where the best misfits, the largest model is fitted
-    from its own start (an estimate far from a misfitting solution may miss a better one).
+    motion (where the swing that stops changes), far above its minimum; a fitted model
+    that adds terms to a new best is refitted where it stopped above its estimate
+    (:func:`_refit_stuck`). Where the best misfits, the largest model is fitted from its
+    own start (an estimate far from a misfitting solution may miss a better one).
     With ``bar``, the step stops where neither the best nor any estimate has an AICc
     below it: at once where the model that sets the bar describes the record within its
     noise (``bar_fits``: none here can do much better), else only once the best here
     describes it or the largest model is fitted."""
     fitted = {first.model: first}
     top = _largest(waveforms)
+    n_points = waveforms[top].t.size
     reference = None
     while True:
         best = fitted[forced] if forced else min(fitted.values(), key=lambda c: c.aicc)
         if best is reference:
-            if top in fitted or not _misfits(best, waveforms[top].t.size):
+            if top in fitted or not _misfits(best, n_points):
                 break
             fitted[top] = _ranked(waveforms[top], vectors[top], _RANKING)[0]
             continue
         reference = best
-        estimates = _estimates(waveforms[top], best, set(waveforms) - set(fitted))
-        if (bar is not None and min([best.aicc] + [e.aicc for e in estimates.values()]) > bar
-                and (bar_fits or top in fitted or not _misfits(best, waveforms[top].t.size))):
+        estimates = _estimates(waveforms[top], best, set(waveforms) - {best.model})
+        _refit_stuck(fitted, estimates, best, waveforms, n_points)
+        unfitted = {m: e for m, e in estimates.items() if m not in fitted}
+        if (bar is not None and min([best.aicc] + [e.aicc for e in unfitted.values()]) > bar
+                and (bar_fits or top in fitted or not _misfits(best, n_points))):
             break
-        for model, estimate in estimates.items():
-            if _may_matter(estimate, best, waveforms[top].t.size):
+        for model, estimate in unfitted.items():
+            if _may_matter(estimate, best, n_points):
                 begin = (estimate.internal if set(best.terms) <= set(estimate.terms)
                          else vectors[model])
                 fitted[model] = _ranked(waveforms[model], begin, _RANKING)[0]
     return {m: fitted.get(m) or estimates[m] for m in waveforms}
+
+
+def _refit_stuck(fitted, estimates, best, waveforms, n_points):
+    """Refit, from its estimate, each fitted model that adds terms to ``best`` but whose
+    fit ended above what the estimate from ``best`` reaches (a fit from an earlier, worse
+    start stuck at a kink of the motion), keeping the lower of the two."""
+    for model in [m for m in fitted if set(best.terms) < set(terms_of(m))]:
+        statistic = n_points * math.log(fitted[model].chi_square
+                                        / max(estimates[model].chi_square, 1e-300))
+        if statistic > _NEGLIGIBLE:
+            again = _ranked(waveforms[model], estimates[model].internal, _RANKING)[0]
+            if again.chi_square < fitted[model].chi_square:
+                fitted[model] = again
 
 
 def _misfits(candidate, n_points):
@@ -321,11 +346,11 @@ def _estimates(largest, best, models):
         rise = float(np.sum((triangle[:, free] @ step.x - target) ** 2)
                      - projected @ projected)
         found[model] = _estimated(model, at[free] + step.x, best.chi_square + rise, n,
-                                  triangle[:, free], largest.noise)
+                                  triangle[:, free])
     return found
 
 
-def _estimated(model, p, chi_square, n, triangle, noise):
+def _estimated(model, p, chi_square, n, triangle):
     """The :class:`Candidate` of an estimate (``triangle`` the R of the Jacobian's QR in
     its free parameters)."""
     n_params = p.size
