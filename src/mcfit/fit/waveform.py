@@ -247,21 +247,21 @@ def _largest(models):
 
 
 def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=False):
-    """{model: Candidate} for the models of ``waveforms``: ``first`` (a Candidate) fitted;
-    the others
-    estimated from the best fitted one (:func:`_estimates`) and fitted where the estimate
-    may change the choice (:func:`_may_matter`), again from each new best, until none
-    may. A model that adds terms to the best is fitted from its estimate (a small step
-    from the best's solution), any other from its start in ``vectors``: from an
-    estimate that drops terms, a model with sliding friction stopped at a kink of its
-    motion (where the swing that stops changes), far above its minimum; a fitted model
-    that adds terms to a new best is refitted where it stopped above its estimate
-    (:func:`_refit_stuck`). Where the best misfits, the largest model is fitted from its
-    own start (an estimate far from a misfitting solution may miss a better one).
-    With ``bar``, the step stops where neither the best nor any estimate has an AICc
-    below it: at once where the model that sets the bar describes the record within its
-    noise (``bar_fits``: none here can do much better), else only once the best here
-    describes it or the largest model is fitted."""
+    """{model: Candidate} for the models of ``waveforms``, ``first`` (a Candidate) fitted.
+
+    The others are estimated from the best fitted one (:func:`_estimates`) and fitted
+    where the estimate may change the choice (:func:`_may_matter`), again from each new
+    best, until none may: a model that adds terms to the best from its estimate (a small
+    step), any other from its start in ``vectors`` (from an estimate that drops terms, a
+    fit with sliding friction stopped at a kink of the motion, where the swing that stops
+    changes). A fitted model that adds terms to a new best is refitted where it stopped
+    above its estimate (:func:`_refit_stuck`). Where the best misfits, the largest model is
+    fitted from its own start (an estimate far from a misfit may miss a better minimum).
+
+    With ``bar``, the step stops where neither the best nor any estimate has an AICc below
+    it: at once where the model that sets the bar describes the record within its noise
+    (``bar_fits``), else only once the best here does or the largest model is fitted.
+    """
     fitted = {first.model: first}
     top = _largest(waveforms)
     n_points = waveforms[top].t.size
