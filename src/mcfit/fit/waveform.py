@@ -53,8 +53,8 @@ _RANKING = {**_TOLERANCES, "ftol": 1e-6}
 # lower chi-square by less than _NEGLIGIBLE (half of the 1.97 below which a test is not
 # "near the threshold"; the AICc penalty of a term is 2).
 _DECISIVE = 60.0
-# The evaluations a form that sets no bar is fitted before its candidates are estimated
-# against the bar another form sets (rank_form's rival; _glimpse).
+# Evaluations of the second form's first fit after which its candidates are estimated
+# against the bar the first form sets (rank_form's rival; _glimpse).
 _GLIMPSE = 4
 # Selected models of two forms whose AICc differ by no more than this cannot be told
 # apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
