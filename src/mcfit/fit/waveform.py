@@ -53,13 +53,13 @@ _RANKING = {**_TOLERANCES, "ftol": 1e-6}
 # lower chi-square by less than _NEGLIGIBLE (half of the 1.97 below which a test is not
 # "near the threshold"; the AICc penalty of a term is 2).
 _DECISIVE = 60.0
+_NEGLIGIBLE = 1.0
 # Evaluations of the second form's first fit after which its candidates are estimated
 # against the bar the first form sets (rank_form's rival; _glimpse).
 _GLIMPSE = 4
 # Selected models of two forms whose AICc differ by no more than this cannot be told
 # apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
 FORM_TIE = 10.0
-_NEGLIGIBLE = 1.0
 
 
 @dataclass(frozen=True, eq=False, repr=False)  # DecayFit's short repr
@@ -185,7 +185,7 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     bar, bar_fits = None, False
     if rival is not None:
         first = forced or rival.selection.model
-        vectors[first] = rival.candidates[first].internal
+        own, vectors[first] = vectors[first], rival.candidates[first].internal
         bar = rival.aicc + FORM_TIE + _DECISIVE
         bar_fits = not _misfits(rival.candidates[rival.selection.model], tw.size)
     candidates = solution = None
@@ -194,8 +194,7 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     if candidates is None:
         begins = [vectors[first]]
         if rival is not None and (forced or not bar_fits):  # a false minimum, maybe
-            begins.append(_start_vector(starts.get(first, starts.get(start.model)), nuisance,
-                                        first))
+            begins.append(own)
         candidate, solution = min((_fitted_as_reported(waveforms[first], begin)
                                    for begin in begins), key=lambda fit: fit[0].chi_square)
         candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
@@ -228,14 +227,18 @@ def report_form(ranked, start):
 def _fitted_as_reported(waveform, start):
     """The model fitted first, by the reported fit's solver (lmfit), as the selection is
     most often its: (its Candidate, the :class:`mcfit.fit.reported.Solution`)."""
-    waveform.typical = _typical(start, waveform.terms)
-    waveform.bounds = _bounds(start, waveform.terms)
-    solution = solve_reported(waveform, lmfit_parameters(waveform.free, start,
-                                                         *waveform.bounds))
+    solution = _solved(waveform, start)
     covariance = (np.full((start.size, start.size), np.nan) if solution.covariance is None
                   else solution.covariance)
-    return _candidate(waveform, solution.x, solution.chi_square, solution.success,
-                      solution.evaluations, covariance), solution
+    return _candidate(waveform.terms, waveform.t.size, solution.x, solution.chi_square,
+                      solution.success, solution.evaluations, covariance), solution
+
+
+def _solved(waveform, start):
+    """lmfit's fit of ``waveform`` from ``start``, with the bounds and steps it sets."""
+    waveform.typical = _typical(start, waveform.terms)
+    waveform.bounds = _bounds(start, waveform.terms)
+    return solve_reported(waveform, lmfit_parameters(waveform.free, start, *waveform.bounds))
 
 
 def _start_vector(values, nuisance, model):
@@ -293,9 +296,7 @@ def _refit_stuck(fitted, estimates, best, waveforms, n_points):
     fit ended above what the estimate from ``best`` reaches (a fit from an earlier, worse
     start stuck at a kink of the motion), keeping the lower of the two."""
     for model in [m for m in fitted if set(best.terms) < set(terms_of(m))]:
-        statistic = n_points * math.log(fitted[model].chi_square
-                                        / max(estimates[model].chi_square, 1e-300))
-        if statistic > _NEGLIGIBLE:
+        if _statistic(fitted[model], estimates[model], n_points) > _NEGLIGIBLE:
             again = _ranked(waveforms[model], estimates[model].internal, _RANKING)[0]
             if again.chi_square < fitted[model].chi_square:
                 fitted[model] = again
@@ -312,9 +313,13 @@ def _may_matter(estimate, best, n_points):
     if estimate.aicc - best.aicc > _DECISIVE:
         return False
     adds = set(best.terms) < set(estimate.terms)
-    # The likelihood-ratio statistic of the terms added, in the units of AICc.
-    statistic = n_points * math.log(best.chi_square / max(estimate.chi_square, 1e-300))
-    return not (adds and statistic < _NEGLIGIBLE)
+    return not (adds and _statistic(best, estimate, n_points) < _NEGLIGIBLE)
+
+
+def _statistic(higher, lower, n_points):
+    """The likelihood-ratio statistic of ``lower``'s chi-square against ``higher``'s, in
+    the units of AICc."""
+    return n_points * math.log(higher.chi_square / max(lower.chi_square, 1e-300))
 
 
 def _estimates(largest, best, models):
@@ -345,23 +350,10 @@ def _estimates(largest, best, models):
                                    method="bvls")
         rise = float(np.sum((triangle[:, free] @ step.x - target) ** 2)
                      - projected @ projected)
-        found[model] = _estimated(model, at[free] + step.x, best.chi_square + rise, n,
-                                  triangle[:, free])
+        covariance = np.linalg.pinv(triangle[:, free].T @ triangle[:, free])
+        found[model] = _candidate(terms_of(model), n, at[free] + step.x,
+                                  best.chi_square + rise, True, 0, covariance, estimated=True)
     return found
-
-
-def _estimated(model, p, chi_square, n, triangle):
-    """The :class:`Candidate` of an estimate (``triangle`` the R of the Jacobian's QR in
-    its free parameters)."""
-    n_params = p.size
-    aicc, bic = information_criteria(chi_square, n, n_params)
-    values = {"y0": float(p[0]), "a": 0.0, "b": 0.0, "c": 0.0}
-    values.update({k: float(p[5 + i]) for i, k in enumerate(terms_of(model))})
-    correlation = uncertainty.term_correlations(
-        ("y0",) + NUISANCE + tuple(terms_of(model)), np.linalg.pinv(triangle.T @ triangle),
-        terms_of(model))
-    return Candidate(model, n_params, chi_square, aicc, bic, True, values, 0, correlation,
-                     p, estimated=True)
 
 
 def _window(t, x, turning, omega):
@@ -446,19 +438,23 @@ def _ranked(waveform, start, tolerances, evaluations=200):
                                     jac=waveform.jacobian, bounds=(lower, upper),
                                     method="trf", x_scale="jac", max_nfev=evaluations,
                                     **tolerances)
-    return _candidate(waveform, result.x, float(2 * result.cost), bool(result.success),
-                      int(result.nfev), np.linalg.pinv(result.jac.T @ result.jac)), result
+    return _candidate(waveform.terms, waveform.t.size, result.x, float(2 * result.cost),
+                      bool(result.success), int(result.nfev),
+                      np.linalg.pinv(result.jac.T @ result.jac)), result
 
 
-def _candidate(waveform, p, chi_square, success, evaluations, covariance):
+def _candidate(terms, n_points, p, chi_square, success, evaluations, covariance,
+               estimated=False):
+    """The :class:`Candidate` of the model with ``terms`` at the vector ``p`` (y0, the
+    nuisance parameters, the terms), fitted or ``estimated``."""
     n_params = p.size
-    aicc, bic = information_criteria(chi_square, waveform.t.size, n_params)
+    aicc, bic = information_criteria(chi_square, n_points, n_params)
     values = {"y0": float(p[0]), "a": 0.0, "b": 0.0, "c": 0.0}
-    values.update({k: float(p[5 + i]) for i, k in enumerate(waveform.terms)})
-    correlation = uncertainty.term_correlations(waveform.free, covariance, waveform.terms)
-    model = "".join(waveform.terms) or NONE
-    return Candidate(model, n_params, chi_square, aicc, bic, success, values, evaluations,
-                     correlation, np.asarray(p), None)
+    values.update({k: float(p[5 + i]) for i, k in enumerate(terms)})
+    correlation = uncertainty.term_correlations(("y0",) + NUISANCE + tuple(terms),
+                                                covariance, terms)
+    return Candidate("".join(terms) or NONE, n_params, chi_square, aicc, bic, success,
+                     values, evaluations, correlation, np.asarray(p), None, estimated)
 
 
 def _reported(selection, candidates, waveform, start, form, solution=None):
@@ -466,10 +462,7 @@ def _reported(selection, candidates, waveform, start, form, solution=None):
     candidate); errors, Q and warnings."""
     terms, t0, names = selection.terms, waveform.t0, waveform.free
     if solution is None:
-        begin = candidates[selection.model].internal
-        waveform.typical = _typical(begin, terms)
-        solution = solve_reported(waveform, lmfit_parameters(names, begin,
-                                                             *_bounds(begin, terms)))
+        solution = _solved(waveform, candidates[selection.model].internal)
     p = solution.x
     residual = waveform.residual(p)
     covariance = solution.covariance
