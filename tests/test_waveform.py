@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from mcfit.analysis import analyse_record, fit_both_forms, fit_turning_points
 from mcfit.fit import waveform
 from mcfit.fit.waveform import WaveformStart, fit_waveform
+from mcfit.fit.waveform_laws import amplitude_waveform
 from mcfit.motion import damping_terms, integrate_accurate, simulate_record
 from mcfit import phase_plane
 from mcfit.phase_plane import phase_plane_motion
@@ -323,7 +324,7 @@ def test_estimates_of_nested_models_match_their_fits():
     turning = find_turning_points(t, x)
     tw, xw, t0, nuisance = waveform._window(t, x, turning, 2 * math.pi)
     noise = waveform.sample_noise(xw)
-    law = {m: waveform.AmplitudeWaveform(tw, xw, t0, m, noise) for m in ("b", "bc", "abc")}
+    law = {m: amplitude_waveform(tw, xw, t0, m, noise) for m in ("b", "bc", "abc")}
     start = WaveformStart.of_fit(fit_turning_points(turning, model="bc"))
     best = waveform.fit_candidate(law["bc"], waveform._start_vector(
         start.values["bc"], nuisance, "bc"))[0]

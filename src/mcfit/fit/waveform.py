@@ -36,7 +36,7 @@ from mcfit.fit.diagnostics import fit_warnings, misfit_warning
 from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
 from mcfit.fit.reported import lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
-from mcfit.fit.waveform_laws import NUISANCE, AmplitudeWaveform, velocity_waveform
+from mcfit.fit.waveform_laws import NUISANCE, amplitude_waveform, velocity_waveform
 from mcfit.viscous_motion import coulomb_force
 
 __all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
@@ -108,7 +108,7 @@ class WaveformStart:
 
 # The physical forms of the damping terms: the waveform model of each and the candidate
 # models it offers.
-FORMS = {"amplitude": (AmplitudeWaveform, MODELS), "velocity": (velocity_waveform, MODELS)}
+FORMS = {"amplitude": (amplitude_waveform, MODELS), "velocity": (velocity_waveform, MODELS)}
 
 
 def fit_waveform(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA,

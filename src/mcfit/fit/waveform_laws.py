@@ -3,7 +3,8 @@ form of the damping forces, behind the interface of :class:`mcfit.fit.reported.L
 
 Parameters y0, theta0, omega, offset e0, drift e1, then the averaged law's a, b, c
 (THEORY.md section 9): :class:`AmplitudeWaveform` by Eq. 20.55's amplitude forms
-(:mod:`mcfit.phase_plane`), :class:`VelocityWaveform` by viscous damping and sliding
+(:mod:`mcfit.phase_plane`; :class:`HystereticWaveform` in closed form for b alone,
+:mod:`mcfit.hysteretic_motion`), :class:`VelocityWaveform` by viscous damping and sliding
 friction in closed form (:mod:`mcfit.viscous_motion`), :class:`EquationOfMotionWaveform`
 with quadratic drag beside them and :class:`PendulumWaveform` with a pendulum's
 restoring force, integrated (:mod:`mcfit.equation_of_motion`). The fit that uses them
@@ -18,11 +19,13 @@ import numpy as np
 
 from mcfit.equation_of_motion import motion_with_sensitivities
 from mcfit.fit.models import TERMS
+from mcfit.hysteretic_motion import hysteretic_motion_jacobian
 from mcfit.phase_plane import phase_plane_differences
 from mcfit.viscous_motion import viscous_motion_jacobian
 
-__all__ = ["AmplitudeWaveform", "VelocityWaveform", "EquationOfMotionWaveform",
-           "PendulumWaveform", "velocity_waveform", "NUISANCE"]
+__all__ = ["AmplitudeWaveform", "HystereticWaveform", "VelocityWaveform",
+           "EquationOfMotionWaveform", "PendulumWaveform", "amplitude_waveform",
+           "velocity_waveform", "NUISANCE"]
 
 # Nuisance parameters of the waveform besides y0: phase, frequency, offset, drift.
 NUISANCE = ("theta0", "omega", "e0", "e1")
@@ -96,6 +99,15 @@ class AmplitudeWaveform:
         return motion, changes
 
 
+class HystereticWaveform(AmplitudeWaveform):
+    """As :class:`AmplitudeWaveform` for the hysteretic term alone, whose motion and
+    derivatives are closed forms (:func:`mcfit.hysteretic_motion.hysteretic_motion_jacobian`)."""
+
+    def _motion_jacobian(self, tau, p, moved):
+        x, by = hysteretic_motion_jacobian(tau, *p[[0, 1, 2, 5]])
+        return x, by  # moved is (y0, theta0, omega, b), by's order
+
+
 class VelocityWaveform(AmplitudeWaveform):
     """As :class:`AmplitudeWaveform` for the velocity forms: viscous b and sliding friction c, the
     motion and its derivatives in closed form
@@ -162,6 +174,13 @@ class PendulumWaveform(EquationOfMotionWaveform):
     def __init__(self, t, x, t0, terms, noise, radians_per_unit=1.0):
         super().__init__(t, x, t0, terms, noise)
         self.radians_per_unit = radians_per_unit
+
+
+def amplitude_waveform(t, x, t0, terms, noise):
+    """Eq. 20.55's amplitude forms: in closed form for the hysteretic term alone, in the
+    phase plane else."""
+    kind = HystereticWaveform if tuple(terms) == ("b",) else AmplitudeWaveform
+    return kind(t, x, t0, terms, noise)
 
 
 def velocity_waveform(t, x, t0, terms, noise):
