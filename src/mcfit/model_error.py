@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mcfit.hysteretic_motion import hysteretic_motion
 from mcfit.phase_plane import phase_plane_motion
 
 __all__ = ["LIMIT", "SCREEN_CONSTANT", "ModelError", "averaged_law_bias", "pendulum_law_bias"]
@@ -86,8 +87,11 @@ def _chain_bias(t, turning, fit, noise_stderr):
     theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
     v = fit.values
     equilibrium = turning.equilibrium_at(times)
-    x = equilibrium + phase_plane_motion(times - t0, v["y0"], theta0, fit.omega, v["a"],
-                                         v["b"], v["c"])[0]
+    if v["a"] == v["c"] == 0.0:  # b alone: the closed form
+        x = equilibrium + hysteretic_motion(times - t0, v["y0"], theta0, fit.omega, v["b"])[0]
+    else:
+        x = equilibrium + phase_plane_motion(times - t0, v["y0"], theta0, fit.omega, v["a"],
+                                             v["b"], v["c"])[0]
     try:
         # Refined as far as the record's crests were: until their shifts are within the
         # record's sample noise (a noise-free waveform would take every pass).
