@@ -462,3 +462,40 @@ def test_a_few_swings_fit_shows_the_fitted_motions_turning_points():
                                rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(analysis.fit.y, analysis.fit.y_fit)
     assert any("not measured but the fitted motion's" in n for n in analysis.turning.notes)
+
+
+@pytest.mark.parametrize("seed", [2026, 1, 2])
+def test_a_decay_to_a_coulomb_stop_at_q_3_is_fitted_in_its_own_form(seed):
+    """The bench's record at Q = 3 with b and a Coulomb tenth (Eq. 20.55, noise 1e-3 of
+    y0): the crests' frequency, 11 % below omega here (the Coulomb stop, and the noise
+    crests after it), had led every fit into another minimum, and velocity a + b + c was
+    reported with a = 0.16 at 19 standard errors and correlated residuals. Retuned to the
+    undamped frequency the crests imply, the amplitude form's b + c describes it, with b
+    and c within 3 standard errors of the truth."""
+    from mcfit.bench.waveform_speed import _law, q_record
+
+    t, x = q_record(3, "bc", seed)
+    _, b, c = _law(3, "bc")
+    turning = find_turning_points(t, x)
+    start = WaveformStart.of_fit(fit_turning_points(turning))
+    fit = fit_both_forms(t, x, turning, start)
+    assert (fit.model, fit.damping_form) == ("bc", "amplitude")
+    assert abs(fit.values["b"] - b) < 3 * fit.stderr["b"]
+    assert abs(fit.values["c"] - c) < 3 * fit.stderr["c"]
+    assert fit.reduced_chi_square < 1.2
+
+
+@pytest.mark.parametrize("q", [2.0, 3.0, 10.0])
+def test_the_undamped_frequency_of_the_crests_of_b_alone_is_omega(q):
+    """Eq. 20.55 with b alone (closed form, no noise): the crests' spacing gives
+    sqrt(omega**2 - k**2), 3 % below omega at Q = 3; their amplitudes give it back."""
+    from mcfit.hysteretic_motion import hysteretic_motion
+
+    t = np.linspace(0.0, 6.0, 60001)
+    x = hysteretic_motion(t, 1.0, 0.0, OMEGA, OMEGA / (2 * q))[0]
+    turning = find_turning_points(t, x + 1e-9 * np.random.default_rng(1).standard_normal(
+        t.size))
+    crests = 2 * math.pi / turning.period
+    assert waveform.undamped_frequency(turning, crests) == pytest.approx(OMEGA, rel=1e-3)
+    if q <= 3:
+        assert crests < 0.98 * OMEGA

@@ -37,6 +37,7 @@ from mcfit.fit.models import MODELS, NONE, REGIME_NAMES, TERMS, terms_of
 from mcfit.fit.reported import lmfit_parameters, solve_reported
 from mcfit.fit.selection import LRT_ALPHA, select_model
 from mcfit.fit.waveform_laws import NUISANCE, amplitude_waveform, velocity_waveform
+from mcfit.turning.common import HALF_CYCLE_SPACING
 from mcfit.viscous_motion import coulomb_force
 
 __all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
@@ -169,7 +170,9 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     rival describes the record within its noise, already after a few steps of the first
     fit (:func:`_glimpse`); where it does not, or where the model is forced (nothing
     else is fitted then), its values may sit in a false minimum, and the first model is
-    fitted from the turning-point fit's values too, the better fit kept."""
+    fitted from the turning-point fit's values too, the better fit kept. Where the first
+    fit misfits, it is fitted again from the turning-point values at the undamped
+    frequency the crests imply (:func:`_retuned`)."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
@@ -197,11 +200,35 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
             begins.append(own)
         candidate, solution = min((_fitted_as_reported(waveforms[first], begin)
                                    for begin in begins), key=lambda fit: fit[0].chi_square)
+        if _misfits(candidate, tw.size):
+            candidate, solution, vectors = _retuned(
+                waveforms[first], candidate, solution, vectors,
+                own if rival is not None else vectors[first],
+                undamped_frequency(turning, start.omega))
         candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
     if selection.model == first and solution is not None and candidates[first] is candidate:
         return RankedForm(form, selection, candidates, waveforms[first], solution)
     return RankedForm(form, selection, candidates, kind(tw, xw, t0, selection.terms, noise))
+
+
+def _retuned(waveform, candidate, solution, vectors, begin, omega):
+    """Where the first fit misfits: the fit from the turning-point start ``begin`` at the
+    undamped frequency ``omega`` (:func:`undamped_frequency`), kept with ``vectors`` at
+    that frequency where it ends lower; else the fit as it was. (candidate, solution,
+    vectors)."""
+    if abs(omega - begin[2]) <= 1e-3 * begin[2]:
+        return candidate, solution, vectors
+    again, solved = _fitted_as_reported(waveform, _at_frequency(begin, omega))
+    if again.chi_square >= candidate.chi_square:
+        return candidate, solution, vectors
+    return again, solved, {m: _at_frequency(v, omega) for m, v in vectors.items()}
+
+
+def _at_frequency(vector, omega):
+    moved = vector.copy()
+    moved[2] = omega
+    return moved
 
 
 def _glimpse(waveforms, first, start, bar):
@@ -365,6 +392,38 @@ def _window(t, x, turning, omega):
     theta0 = 0.0 if turning.sign[used[0]] >= 0 else math.pi
     e0 = turning.equilibrium_at(t0)
     return t[window], x[window], t0, [theta0, omega, e0, turning.equilibrium_drift]
+
+
+# Crests this many standard errors above 0 count in the start frequency.
+_CLEAR = 10.0
+
+
+def undamped_frequency(turning, omega):
+    """The undamped angular frequency the crests imply, ``omega`` (the crests' own) where
+    no half-cycle tells it.
+
+    The crests' spacing gives the damped frequency nu = pi/spacing of each half-cycle,
+    below omega at low Q; Eq. 20.55 with b alone has nu = sqrt(omega**2 - k**2) and the
+    amplitude ratio r = (omega - k)/(omega + k) per half-cycle (mcfit.hysteretic_motion),
+    so omega = nu/sqrt(1 - rho**2), rho = (1 - r)/(1 + r). The median over the
+    half-cycles between used crests of opposite sign, both clear of the noise, weighted by
+    their amplitude (where a Coulomb term, which drops the amplitude but not the
+    frequency, counts least). At Q = 3 the crests' frequency is 3 % below omega, and with
+    a Coulomb stop 11 %: a start that far off led the fit into another minimum.
+    """
+    keep = turning.used & (turning.y > _CLEAR * turning.sigma)
+    pairs = keep[:-1] & keep[1:] & (turning.sign[:-1] != turning.sign[1:])
+    spacing = np.diff(turning.t)[pairs]
+    low, high = (fraction * 2 * math.pi / omega for fraction in HALF_CYCLE_SPACING)
+    pairs = np.flatnonzero(pairs)[(spacing > low) & (spacing < high)]
+    if pairs.size == 0:
+        return omega
+    before, after = turning.y[pairs], turning.y[pairs + 1]
+    rho = np.abs(before - after) / (before + after)
+    estimates = math.pi / (turning.t[pairs + 1] - turning.t[pairs]) / np.sqrt(1 - rho**2)
+    order = np.argsort(estimates)
+    weights = np.cumsum((before + after)[order])
+    return float(estimates[order][np.searchsorted(weights, 0.5 * weights[-1])])
 
 
 def sample_noise(x):
