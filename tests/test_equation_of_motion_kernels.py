@@ -155,8 +155,10 @@ from mcfit.equation_of_motion import motion_with_sensitivities
 import mcfit.equation_of_motion_kernels as kernels
 t = np.linspace(0.0, 10.0, 1001)
 x, s = motion_with_sensitivities(t, 1.2, 0.0, 6.283, 0.1, 0.3, 0.4, restoring="pendulum")
+compiled = [f for f in vars(kernels).values() if hasattr(f, "signatures")]
 print(repr(float(x[-1])), repr(float(s[-1, 2])), type(kernels._integrate._cache).__name__,
-      sum(kernels._integrate.stats.cache_hits.values()))
+      sum(kernels._integrate.stats.cache_hits.values()),
+      max(len(f.signatures) for f in compiled))
 """
 
 
@@ -191,6 +193,7 @@ def test_without_any_writable_cache_folder_it_compiles_and_agrees(read_only_pack
                NUMBA_CACHE_DIR=str(blocked / "numba"), HOME=str(blocked / "home"),
                XDG_CACHE_HOME=str(blocked / "cache"))
     assert out[:2] == _expected() and out[2] == "NullCache"
+    assert out[4] == "1"  # each kernel compiled once, not again for literal arguments
 
 
 @pytest.mark.slow

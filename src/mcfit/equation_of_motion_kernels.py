@@ -33,6 +33,8 @@ _EXPONENT = -1.0 / 8.0  # the error estimate's order is 7
 _ROOT_TOLERANCE = 1e-14
 # The state: x, dx/dp for the six parameters, v, dv/dp; the output is its first 7 entries.
 _OUT, _V = 7, 7
+# Constant indices are passed as np.int64(...): numba would compile a function once more
+# for each literal integer it is called with.
 
 
 def _compiled(function):
@@ -90,7 +92,7 @@ def _first_step(y, span, rtol, atol, K, work, parameters, sense):
     h0 = min(1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1, span)
     for i in range(n):
         work[i] = y[i] + h0 * K[0, i]
-    _rates(work, K, 1, parameters, sense)
+    _rates(work, K, np.int64(1), parameters, sense)
     d2 = 0.0
     for i in range(n):
         d2 += ((K[1, i] - K[0, i]) / (atol[i] + abs(y[i]) * rtol)) ** 2
@@ -195,7 +197,7 @@ def _reversal(F, y, sense):
         mid = (low * f_high - high * f_low) / (f_high - f_low)
         if not low < mid < high:
             mid = 0.5 * (low + high)
-        value = sense * _polynomial(F, y, mid, _V)
+        value = sense * _polynomial(F, y, mid, np.int64(_V))
         if value == 0.0:
             return mid
         if value > 0.0:
@@ -241,8 +243,8 @@ def _integrate(tau, parameters, rtol, atol, max_steps, A, E3, E5, D, y, y_new, w
         sense = math.copysign(1.0, y[_V])
     else:
         sense = -math.copysign(1.0, _restoring(y[0], omega, pendulum))
-    t, filled, steps = 0.0, 0, 0
-    _rates(y, K, 0, parameters, sense)
+    t, filled, steps = 0.0, np.int64(0), 0
+    _rates(y, K, np.int64(0), parameters, sense)
     h = _first_step(y, max(tau[n - 1], 1e-300), rtol, atol, K, work, parameters, sense)
     while True:
         if y[_V] == 0.0 and abs(_restoring(y[0], omega, pendulum)) <= mu:
@@ -286,7 +288,7 @@ def _integrate(tau, parameters, rtol, atol, max_steps, A, E3, E5, D, y, y_new, w
             t += h
         for i in range(y.size):
             y[i] = y_new[i]
-        _rates(y, K, 0, parameters, sense)
+        _rates(y, K, np.int64(0), parameters, sense)
         h = proposed
 
 
