@@ -145,6 +145,28 @@ def _error_norm(y, y_new, K, h, E3, E5, rtol, atol):
 
 
 @_compiled
+def _accepted_step(y, t, h, K, A, E3, E5, y_new, work, rtol, atol, parameters, sense):
+    """A step from (t, y) into ``y_new`` under scipy's control, tried first at ``h``: the
+    step taken, the step proposed next and the attempts; the step is 0 where it failed
+    (too small a step, an error that is not finite)."""
+    attempts, rejected = 0, False
+    while True:
+        attempts += 1
+        if h < 10.0 * (np.nextafter(t, np.inf) - t):
+            return 0.0, 0.0, attempts
+        _step(y, h, K, A, y_new, work, parameters, sense)
+        error = _error_norm(y, y_new, K, h, E3, E5, rtol, atol)
+        if not math.isfinite(error):
+            return 0.0, 0.0, attempts
+        if error < 1.0:
+            break
+        h *= max(_MIN_FACTOR, _SAFETY * error ** _EXPONENT)
+        rejected = True
+    growth = _MAX_FACTOR if error == 0.0 else min(_MAX_FACTOR, _SAFETY * error ** _EXPONENT)
+    return h, h * (min(1.0, growth) if rejected else growth), attempts
+
+
+@_compiled
 def _dense(y, y_new, h, K, A, D, F, work, parameters, sense):
     """The coefficients F (7, n) of the step's interpolant (three more stages)."""
     for s in range(_STAGES + 1, K.shape[0]):
@@ -255,23 +277,11 @@ def _integrate(tau, parameters, rtol, atol, max_steps, A, E3, E5, D, y, y_new, w
             filled += 1
         if filled == n:
             return n
-        rejected = False
-        while True:  # until a step is accepted
-            steps += 1
-            h = min(h, tau[n - 1] - t)
-            if steps > max_steps or h < 10.0 * (np.nextafter(t, np.inf) - t):
-                return filled
-            _step(y, h, K, A, y_new, work, parameters, sense)
-            error = _error_norm(y, y_new, K, h, E3, E5, rtol, atol)
-            if not math.isfinite(error):
-                return filled
-            if error < 1.0:
-                break
-            h *= max(_MIN_FACTOR, _SAFETY * error ** _EXPONENT)
-            rejected = True
-        growth = (_MAX_FACTOR if error == 0.0
-                  else min(_MAX_FACTOR, _SAFETY * error ** _EXPONENT))
-        proposed = h * (min(1.0, growth) if rejected else growth)
+        h, proposed, attempts = _accepted_step(y, t, min(h, tau[n - 1] - t), K, A, E3, E5,
+                                               y_new, work, rtol, atol, parameters, sense)
+        steps += attempts
+        if h == 0.0 or steps > max_steps:
+            return filled
         _dense(y, y_new, h, K, A, D, F, work, parameters, sense)
         if sense * y_new[_V] < 0.0:  # the velocity changed sign in this step
             fraction = _reversal(F, y, sense)
@@ -320,9 +330,10 @@ def integrate_motion(tau, state, parameters, rtol, atol, max_steps):
         finite, a step too small or too many steps).
     """
     size = state.size
+    stages, interpolant = np.empty((_A.shape[0], size)), np.empty((_D.shape[0] + 3, size))
     out = np.empty((tau.size, _OUT))
     filled = _integrate(tau, parameters, rtol, atol, max_steps, _A, _E3, _E5, _D,
-                        state.copy(), np.empty(size), np.empty(size),
-                        np.empty((_A.shape[0], size)), np.empty((_D.shape[0] + 3, size)), out)
+                        state.copy(), np.empty(size), np.empty(size), stages, interpolant,
+                        out)
     out[filled:] = np.nan
     return out
