@@ -10,8 +10,8 @@ Sliding friction and quadratic drag are smooth inside a half-cycle (the velocity
 its sign), so each half-cycle is integrated on its own with sgn(x') its sense of motion,
 its end (the reversal, x' = 0) found as the root of the step's interpolant, and the
 sensitivities of the velocity jump there by a+/a-, the accelerations after and before
-(the saltation of the switching surface x' = 0). The mass sticks at a reversal where |R(x)| <= mu (static friction equal to the
-sliding friction). No I/O.
+(the saltation of the switching surface x' = 0). The mass sticks at a reversal where
+|R(x)| <= mu (static friction equal to the sliding friction). No I/O.
 """
 
 from __future__ import annotations
