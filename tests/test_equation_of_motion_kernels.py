@@ -225,3 +225,11 @@ def test_at_a_fits_tolerance_the_motion_is_smooth_in_the_parameters(restoring):
                     ) / (2e-6 * p[j])
         size = np.max(np.abs(expected))
         assert np.max(np.abs(sensitivities[:, j] - expected)) < 1e-5 * size, PARAMETERS[j]
+
+
+def test_a_tolerance_of_zero_ends_the_integration_in_nan_not_an_exception():
+    """No step meets rtol = atol = 0 (the error's scale is 0): NaN after the start, as
+    LSODA's refusal gave."""
+    x, sensitivities = motion_with_sensitivities(np.linspace(0.0, 2.0, 5), 1.0, 0.0, OMEGA,
+                                                 0.1, rtol=0.0)
+    assert x[0] == 1.0 and np.all(np.isnan(x[1:])) and np.all(np.isnan(sensitivities[1:]))

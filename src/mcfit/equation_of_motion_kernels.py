@@ -39,11 +39,12 @@ _OUT, _V = 7, 7
 
 def _compiled(function):
     """``numba.njit`` with the on-disk cache; without it where numba finds no writable
-    folder (it raises at decoration then)."""
+    folder (it raises at decoration then). numpy's floating-point errors (x/0 is inf or
+    NaN, which ends the integration) rather than Python's ZeroDivisionError."""
     try:
-        return numba.njit(cache=True)(function)
+        return numba.njit(cache=True, error_model="numpy")(function)
     except RuntimeError:
-        return numba.njit(function)
+        return numba.njit(error_model="numpy")(function)
 
 
 @_compiled
