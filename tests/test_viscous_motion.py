@@ -24,6 +24,17 @@ def test_viscous_motion_with_sliding_friction_matches_a_tight_integration(beta, 
     assert np.max(np.abs(viscous_motion(t, 1.0, theta0, OMEGA, beta, c) - expected)) < 1e-9
 
 
+@pytest.mark.parametrize("theta0", [math.pi, -math.pi, 3 * math.pi])
+def test_a_start_at_rest_on_the_negative_side_swings_back(theta0):
+    """theta0 a multiple of pi: sin(theta0) is 1e-16, not 0; the mass starts from rest at
+    -y0 (before, a velocity of -1e-16 ran a whole half-cycle with the friction's sign
+    reversed, 4*mu/w**2 off for the rest of the record)."""
+    mu = 0.3
+    t, expected = integrate(lambda x, v, _: 0.4 * v, OMEGA, -1.0, 6.0, 50.0, mu=mu)
+    x = viscous_motion(t, 1.0, theta0, OMEGA, 0.2, 2 * mu / (math.pi * OMEGA))
+    assert np.max(np.abs(x - expected)) < 1e-9
+
+
 def test_without_friction_it_is_the_damped_cosine():
     t = np.linspace(0.0, 5.0, 501)
     damped = math.sqrt(OMEGA**2 - 0.64)

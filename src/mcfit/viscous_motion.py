@@ -26,6 +26,7 @@ __all__ = ["coulomb_force", "viscous_motion", "viscous_motion_jacobian"]
 
 # The parameters of the derivatives, in the order of viscous_motion's arguments.
 _PARAMETERS = ("y0", "theta0", "omega", "beta", "c")
+_AT_REST = 1e-14  # a starting speed below this share of omega*|x0| is none
 
 
 def coulomb_force(c, omega):
@@ -83,6 +84,10 @@ def _motion(tau, y0, theta0, omega, beta, c, derivatives):
               else omega * 1e-6)
     offset = (0.5 * math.pi) * c / omega  # mu / omega**2
     x0, v0 = y0 * theta0.cos(), -(omega * y0 * theta0.sin())
+    if abs(v0.v) <= _AT_REST * omega.v * abs(x0.v):
+        # At rest (theta0 a multiple of pi, where sin is 1e-16, not 0): a velocity of
+        # either sign would start a half-cycle that ends at once or the wrong way.
+        v0 = _Jet(0.0, v0.g)
     if v0.v == 0.0 and abs(x0.v) <= offset.v:
         return np.full(tau.shape, x0.v), _constant(x0, tau, derivatives)
     sense = math.copysign(1.0, v0.v) if v0.v != 0.0 else -math.copysign(1.0, x0.v)
