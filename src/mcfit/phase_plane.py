@@ -20,7 +20,9 @@ Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md sectio
 The half-cycles are solved all at once, by one Newton iteration over all their
 collocation equations (:func:`_all_half_cycles`), started from the averaged law; the
 functions take arrays of parameter sets (shape (m,)). :func:`phase_plane_differences`
-gives a forward-difference Jacobian from one solution. numpy and scipy.sparse only.
+gives a forward-difference Jacobian from one solution; its per-sample loops are compiled
+(:mod:`mcfit.phase_plane_kernels`, numba, imported there only: :func:`phase_plane_motion`
+stays numpy alone).
 """
 
 from __future__ import annotations
@@ -29,7 +31,6 @@ import math
 
 import numpy as np
 from numpy.polynomial import chebyshev
-from scipy import sparse
 
 from mcfit import decay
 
@@ -158,13 +159,15 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     The moved sets take one Newton step from the solution at ``parameters`` with its
     Jacobian (the chord method: the error is of the order of the squared step). Their
     change at fixed time is the interpolant's, differentiated in its nodes
-    (:func:`_linear_changes`), at any damping. The last swings of a decay that stops are
-    solved for set 0 and followed to first order by the others
+    (:func:`mcfit.phase_plane_kernels.hermite_changes`), at any damping. The last swings
+    of a decay that stops are solved for set 0 and followed to first order by the others
     (:func:`_neighbour_swings`), or for every set on its own where a set's swings differ
     in kind; where a moved set counts its half-cycles from another multiple of pi, every
     set is solved on its own and the changes are differences of
     :func:`phase_plane_motion`.
     """
+    from mcfit import phase_plane_kernels as kernels  # numba: on the waveform fit's path only
+
     t = np.asarray(t, dtype=float)
     sets = np.asarray(parameters, dtype=float)[None, :] + np.vstack(
         [np.zeros((1, 6)), np.asarray(steps, dtype=float)])
@@ -187,9 +190,7 @@ def phase_plane_differences(t, parameters, steps, memory=None):
             x = _motion(t, y0, theta0, omega, a, b, c, at_once=True)
             return x[0], x[1:] - x[0]
         *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
-        j, basis, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
-        x = amplitude * np.cos(phase)
-        changes = _linear_changes(nodes, j, basis, amplitude, phase)
+        x, changes = kernels.hermite_changes(t, *nodes)
         stops = final[:, 0]
         swung = None
         if np.isfinite(stops[0]) and t[-1] >= stops[0]:
@@ -207,50 +208,6 @@ def phase_plane_differences(t, parameters, steps, memory=None):
             x[late], changes[:, late] = moved[0], moved[1:] - moved[0]
     return (np.nan_to_num(x, copy=False, nan=0.0, posinf=1e300, neginf=-1e300),
             np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
-
-
-def _linear_changes(nodes, j, basis, amplitude, phase):
-    """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
-    ``j`` of set 0 with Hermite ``basis`` there (:func:`_interpolated`), where set 0 has
-    ``amplitude`` and total ``phase``: the interpolant differentiated in its nodes'
-    times, values and rates, exact to first order in their changes (past the last node,
-    at rest, the change of its state).
-
-    In an interval the change of phase or amplitude at a fixed time is itself a cubic
-    Hermite interpolant in s: of its changes at fixed time at the two nodes and of its
-    slopes in s there (the nodes' rates' changes, less the interpolant's second
-    derivative times the nodes' shifts in time). Those per node and interval, then one
-    sparse row per sample weighs them."""
-    times = nodes[0]
-    count, sets = times.shape[1], times.shape[0] - 1
-    span = np.diff(times[0])
-    width = np.where(span > 0, span, 1.0)[:, None]
-    shift = times.T[:, 1:] - times.T[:, :1]  # (nodes, sets)
-    # Per node and set: for the phase, then the amplitude, the change at fixed time, and
-    # the slopes in s at the start and at the end of the interval the node starts.
-    table = np.zeros((count, 6, sets))
-    for k, (value, rate) in ((0, (nodes[1].T, nodes[3].T)), (3, (nodes[2].T, nodes[4].T))):
-        p, m = value[:, :1], rate[:, :1]
-        m0, m1, mean = m[:-1], m[1:], (p[1:] - p[:-1]) / width
-        rate_change = rate[:, 1:] - rate[:, :1]
-        np.subtract(value[:, 1:] - p, m * shift, out=table[:, k])
-        # The slopes: the rates' changes, less the derivative in s of the interpolant's
-        # rate at either end times the node's shift in time.
-        np.subtract(rate_change[:-1] * width, (6 * mean - 4 * m0 - 2 * m1) * shift[:-1],
-                    out=table[:-1, k + 1])
-        np.subtract(rate_change[1:] * width, (2 * m0 + 4 * m1 - 6 * mean) * shift[1:],
-                    out=table[:-1, k + 2])
-    n = j.size
-    weights = np.empty((n, 8))
-    for k, dx in ((0, -amplitude * np.sin(phase)), (4, np.cos(phase))):  # dx/dphase, dA
-        for i, h in enumerate(basis):
-            np.multiply(dx, h, out=weights[:, k + i])
-    # Columns: the change at the interval's two nodes, then its two slopes; 32-bit
-    # indices, which scipy would otherwise make at thrice the product's cost.
-    at = 6 * j.astype(np.int32)[:, None] + np.array([0, 6, 1, 2, 3, 9, 4, 5], dtype=np.int32)
-    matrix = sparse.csr_matrix((weights.ravel(), at.ravel(), np.arange(
-        0, 8 * n + 1, 8, dtype=np.int32)), shape=(n, 6 * count))
-    return np.ascontiguousarray((matrix @ table.reshape(6 * count, sets)).T)
 
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
@@ -848,19 +805,20 @@ def _reversal(v_of, sense, length):
 
 def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     """x at times ``t`` from the nodes, by cubic Hermite interpolation of the total phase
-    and the amplitude in time; past the last node the state stays where it was held."""
+    and the amplitude in time; past the last node the state stays where it was held.
+    (:func:`mcfit.phase_plane_kernels.hermite_changes` is the same interpolant, compiled,
+    with its changes; this path stays free of numba for :func:`phase_plane_motion`.)"""
     x = np.empty((times.shape[0], t.size))
     for i in range(times.shape[0]):
-        _, _, amplitude, phase = _interpolated(t, times[i], phases[i], amplitudes[i],
-                                               phase_rates[i], amplitude_rates[i])
+        amplitude, phase = _interpolated(t, times[i], phases[i], amplitudes[i],
+                                         phase_rates[i], amplitude_rates[i])
         x[i] = amplitude * np.cos(phase)
     return x
 
 
 def _interpolated(t, times, phases, amplitudes, phase_rates, amplitude_rates):
-    """Interval index of each time, the cubic Hermite basis at its position in it (h00,
-    h01, h10, h11 of s in [0, 1]), and the amplitude and total phase there, from the
-    nodes of one set."""
+    """The amplitude and total phase at times ``t`` from the nodes of one set (cubic
+    Hermite basis h00, h01, h10, h11 of s in [0, 1] in each interval)."""
     j = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
     span = times[j + 1] - times[j]
     width = np.where(span > 0, span, 1.0)
@@ -873,5 +831,4 @@ def _interpolated(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     amplitude = (basis[0] * amplitudes[j] + slopes[0] * amplitude_rates[j]
                  + basis[1] * amplitudes[j + 1] + slopes[1] * amplitude_rates[j + 1])
     after = t >= times[-1]
-    return (j, basis, np.where(after, amplitudes[-1], amplitude),
-            np.where(after, phases[-1], phase))
+    return np.where(after, amplitudes[-1], amplitude), np.where(after, phases[-1], phase)

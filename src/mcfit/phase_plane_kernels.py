@@ -1,0 +1,117 @@
+"""Compiled loops of :func:`mcfit.phase_plane.phase_plane_differences` (numba).
+
+Only the waveform fit's evaluation imports this module: numba's import costs far more
+than a one-record run of the turning-point fit (README, "Speed"). The compiled code is
+cached beside this file, else in the user's cache folder (numba's own fallback); where
+neither is writable it is compiled in each process, uncached.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+__all__ = ["hermite_changes"]
+
+
+def _compiled(function):
+    """``function`` compiled in nopython mode with numpy's float semantics (inf and nan,
+    no ZeroDivisionError), cached where numba finds a writable folder."""
+    options = {"nogil": True, "error_model": "numpy"}
+    try:
+        return numba.njit(cache=True, **options)(function)
+    except RuntimeError:  # "cannot cache function ...: no locator available"
+        return numba.njit(**options)(function)
+
+
+@_compiled
+def _node_changes(times, values, rates):
+    """Per node of set 0 and moved set (rows 1 on): the change of the interpolated
+    quantity at the node's fixed time, and its slopes in s at the start and the end of
+    the interval the node starts (the rates' changes less the derivative in s of the
+    interpolant's rate at either end times the node's shift in time), shape
+    (count, sets, 3)."""
+    m, count = times.shape
+    table = np.zeros((count, m - 1, 3))
+    for i in range(count):
+        for k in range(m - 1):
+            shift = times[k + 1, i] - times[0, i]
+            table[i, k, 0] = (values[k + 1, i] - values[0, i]) - rates[0, i] * shift
+    for i in range(count - 1):
+        span = times[0, i + 1] - times[0, i]
+        width = span if span > 0 else 1.0
+        m0, m1 = rates[0, i], rates[0, i + 1]
+        mean = (values[0, i + 1] - values[0, i]) / width
+        for k in range(m - 1):
+            start = times[k + 1, i] - times[0, i]
+            end = times[k + 1, i + 1] - times[0, i + 1]
+            table[i, k, 1] = ((rates[k + 1, i] - m0) * width
+                              - (6 * mean - 4 * m0 - 2 * m1) * start)
+            table[i, k, 2] = ((rates[k + 1, i + 1] - m1) * width
+                              - (2 * m0 + 4 * m1 - 6 * mean) * end)
+    return table
+
+
+@_compiled
+def hermite_changes(t, times, phases, amplitudes, phase_rates, amplitude_rates):
+    """x of set 0 at times ``t`` by cubic Hermite interpolation of its total phase and
+    amplitude in time between its nodes, and the changes of the moved sets there to
+    first order: the interpolant differentiated in its nodes' times, values and rates.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times (s), sorted.
+    times, phases, amplitudes, phase_rates, amplitude_rates : ndarray, shape (m, count)
+        Each set's nodes (row 0 the set the others are small changes of): times (s),
+        total phase (rad), amplitude (U), and their time derivatives.
+
+    Returns
+    -------
+    x : ndarray, shape (n,)
+        x of set 0 (U); past its last node, held at the last node's state.
+    changes : ndarray, shape (m - 1, n)
+        x of each moved set less ``x`` (U), to first order: in an interval the change of
+        phase or amplitude at a fixed time is itself a cubic Hermite interpolant in s, of
+        its changes at the two nodes and its slopes there (:func:`_node_changes`).
+    """
+    m, count = times.shape
+    phase_table = _node_changes(times, phases, phase_rates)
+    amplitude_table = _node_changes(times, amplitudes, amplitude_rates)
+    knots = times[0]
+    found = np.searchsorted(knots, t, side="right")
+    x = np.empty(t.size)
+    changes = np.empty((m - 1, t.size))
+    for i in range(t.size):
+        j = min(max(found[i] - 1, 0), count - 2)
+        span = knots[j + 1] - knots[j]
+        width = span if span > 0 else 1.0
+        s = 0.0
+        if span > 0:
+            s = (t[i] - knots[j]) / width
+            s = 0.0 if s < 0.0 else (1.0 if s > 1.0 else s)
+        s2 = s * s
+        s3 = s2 * s
+        h00, h01 = 2 * s3 - 3 * s2 + 1, -2 * s3 + 3 * s2
+        h10, h11 = s3 - 2 * s2 + s, s3 - s2
+        if t[i] >= knots[count - 1]:
+            phase, amplitude = phases[0, count - 1], amplitudes[0, count - 1]
+        else:
+            phase = (h00 * phases[0, j] + h10 * width * phase_rates[0, j]
+                     + h01 * phases[0, j + 1] + h11 * width * phase_rates[0, j + 1])
+            amplitude = (h00 * amplitudes[0, j] + h10 * width * amplitude_rates[0, j]
+                         + h01 * amplitudes[0, j + 1]
+                         + h11 * width * amplitude_rates[0, j + 1])
+        cos, sin = math.cos(phase), math.sin(phase)
+        x[i] = amplitude * cos
+        along = -amplitude * sin  # dx/dphase; dx/damplitude is cos
+        for k in range(m - 1):
+            p, q = phase_table, amplitude_table
+            changes[k, i] = (
+                along * (h00 * p[j, k, 0] + h01 * p[j + 1, k, 0] + h10 * p[j, k, 1]
+                         + h11 * p[j, k, 2])
+                + cos * (h00 * q[j, k, 0] + h01 * q[j + 1, k, 0] + h10 * q[j, k, 1]
+                         + h11 * q[j, k, 2]))
+    return x, changes
