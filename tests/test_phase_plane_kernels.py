@@ -16,16 +16,17 @@ import pytest
 from scipy.interpolate import CubicHermiteSpline
 
 from mcfit import phase_plane
+from mcfit import phase_plane_kernels as kernels
 from mcfit.phase_plane_kernels import hermite_changes
 
 OMEGA = 2 * math.pi
 KERNELS = Path(phase_plane.__file__).with_name("phase_plane_kernels.py")
 
 
-def _nodes(q, shares, theta0, t_end):
-    """The nodes of a parameter set and of its moved sets (steps of 1e-7 in y0, theta0,
-    omega and each damping term), as :func:`phase_plane.phase_plane_differences` makes
-    them."""
+def _solved(q, shares, theta0, t_end):
+    """The half-cycles of a parameter set and of its moved sets (steps of 1e-7 in y0,
+    theta0, omega and each damping term), as :func:`phase_plane.phase_plane_differences`
+    solves them, and the arguments of :func:`phase_plane._fine_nodes` after them."""
     rate = OMEGA / (2 * q)
     p = np.array([1.0, theta0, OMEGA] + [rate * shares.get(k, 0.0) for k in "abc"])
     moved = [0, 1, 2] + [3 + "abc".index(k) for k in shares]
@@ -34,8 +35,32 @@ def _nodes(q, shares, theta0, t_end):
     base = np.floor(theta0 / math.pi) * math.pi
     first = phase_plane._first_solution(t_end, y0, theta0 - base, omega, a, b, c)
     solved = phase_plane._chord(first, y0, theta0 - base, omega, a, b, c)
-    *nodes, final = phase_plane._fine_nodes(solved, base, theta0 - base, omega, a, b, c)
+    return solved, base, theta0 - base, omega, a, b, c
+
+
+def _nodes(q, shares, theta0, t_end):
+    """The nodes of the sets of :func:`_solved` (compiled) and their stops."""
+    *nodes, final = phase_plane._fine_nodes(*_solved(q, shares, theta0, t_end), kernels)
     return nodes, final
+
+
+@pytest.mark.parametrize(("q", "shares", "theta0"), [
+    (10.0, {"b": 1.0}, -0.4),
+    (3.0, {"a": 0.2, "b": 0.7, "c": 0.1}, 7.0),  # counted from 2*pi
+    (2.0, {"b": 0.9, "c": 0.1}, 0.2),  # at rest after a Coulomb stop
+])
+def test_the_compiled_fine_nodes_are_numpys(q, shares, theta0):
+    """The compiled nodes against numpy's (which the motion without numba keeps), to
+    rounding: their differences between sets too, which the changes are made of."""
+    arguments = _solved(q, shares, theta0, 4.0 * q)
+    compiled = phase_plane._fine_nodes(*arguments, kernels)
+    expected = phase_plane._fine_nodes(*arguments)
+    np.testing.assert_array_equal(compiled[-1], expected[-1])  # the stops
+    for found, values in zip(compiled[:-1], expected[:-1]):
+        scale = np.max(np.abs(values))
+        np.testing.assert_allclose(found, values, rtol=0, atol=1e-15 * scale)
+        np.testing.assert_allclose(found[1:] - found[0], values[1:] - values[0], rtol=0,
+                                   atol=2e-15 * scale)
 
 
 def _spline_x(t, times, phases, amplitudes, phase_rates, amplitude_rates):

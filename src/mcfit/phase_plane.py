@@ -67,6 +67,7 @@ def _chebyshev_matrices(nodes, fine):
 
 _S, _INTEGRATE, _EVALUATE = _chebyshev_matrices(NODES, FINE)
 _FINE_S = np.linspace(0.0, 1.0, FINE)
+_EVALUATE_T = np.ascontiguousarray(_EVALUATE.T)
 
 
 def _rates(amplitude, phi, omega, a, b, c, trig=None, derivative=True):
@@ -189,7 +190,7 @@ def phase_plane_differences(t, parameters, steps, memory=None):
         if solved is None:  # the steps are no derivatives: every set on its own
             x = _motion(t, y0, theta0, omega, a, b, c, at_once=True)
             return x[0], x[1:] - x[0]
-        *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
+        *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c, kernels)
         x, changes = kernels.hermite_changes(t, *nodes)
         stops = final[:, 0]
         swung = None
@@ -449,33 +450,44 @@ def _begins(length, time_rate, held):
     return np.cumsum(durations, axis=1) - durations
 
 
-def _fine_nodes(solved, base, phi, omega, a, b, c):
+def _fine_nodes(solved, base, phi, omega, a, b, c, kernels=None):
     """The solved half-cycles on FINE points each; from the first finished half-cycle on
-    (held, or starting after the record) the state of its start, at rest."""
+    (held, or starting after the record) the state of its start, at rest. ``kernels``:
+    :mod:`mcfit.phase_plane_kernels` where the caller has loaded it (the same nodes,
+    compiled)."""
     amplitudes, start_phi, length, held, finished, begins, time_rate, free = solved
     m, count = held.shape
-    fine_a = amplitudes @ _EVALUATE.T
-    fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T
-    fine_phi = start_phi + length * _FINE_S
-    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free,
-                                 trig=_trig(fine_phi), derivative=False)
-    total = base[..., None] + np.arange(count)[:, None] * math.pi + fine_phi
     first = np.where(np.any(finished, axis=1), np.argmax(finished, axis=1), count)
     rows = np.arange(m)
     last = np.minimum(first, count - 1)
     stop_t = begins[rows, last]
     stop_phase = base[:, 0] + last * math.pi + start_phi[rows, last, 0]
     stop_a = amplitudes[rows, last, 0]
-    rest = (np.arange(count) >= first[:, None])[..., None]
-    nodes = (np.where(rest, stop_t[:, None, None], fine_t),
-             np.where(rest, stop_phase[:, None, None], total),
-             np.where(rest, stop_a[:, None, None], fine_a),
-             np.where(rest, 0.0, 1.0 / fine_rate), np.where(rest, 0.0, slope / fine_rate))
     final = np.full((m, 3), np.inf)
     stops = np.any(held, axis=1)
     h = np.argmax(held, axis=1)
     final[stops] = np.column_stack([begins[rows, h], amplitudes[rows, h, 0],
                                     np.cos(base[:, 0] + h * math.pi)])[stops]
+    if kernels is not None:
+        shape = (m, count)
+        nodes = kernels.fine_nodes(
+            amplitudes, time_rate, np.broadcast_to(start_phi[..., 0], shape),
+            np.broadcast_to(length[..., 0], shape), begins,
+            np.stack([np.broadcast_to(k[..., 0], shape) for k in free]), omega[:, 0],
+            base[:, 0], first, np.column_stack([stop_t, stop_phase, stop_a]),
+            _EVALUATE_T, _INTEGRATE, _FINE_S)
+        return tuple(nodes) + (final,)
+    fine_a = amplitudes @ _EVALUATE.T
+    fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T
+    fine_phi = start_phi + length * _FINE_S
+    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free,
+                                 trig=_trig(fine_phi), derivative=False)
+    total = base[..., None] + np.arange(count)[:, None] * math.pi + fine_phi
+    rest = (np.arange(count) >= first[:, None])[..., None]
+    nodes = (np.where(rest, stop_t[:, None, None], fine_t),
+             np.where(rest, stop_phase[:, None, None], total),
+             np.where(rest, stop_a[:, None, None], fine_a),
+             np.where(rest, 0.0, 1.0 / fine_rate), np.where(rest, 0.0, slope / fine_rate))
     return tuple(v.reshape(m, -1) for v in nodes) + (final,)
 
 

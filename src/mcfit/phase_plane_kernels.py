@@ -13,7 +13,9 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["hermite_changes"]
+__all__ = ["fine_nodes", "hermite_changes"]
+
+_HALF_PI = 0.5 * math.pi
 
 
 def _compiled(function):
@@ -24,6 +26,87 @@ def _compiled(function):
         return numba.njit(cache=True, **options)(function)
     except RuntimeError:  # "cannot cache function ...: no locator available"
         return numba.njit(**options)(function)
+
+
+@_compiled
+def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, base,
+               first, rest, evaluate, integrate, fine_s):
+    """The solved half-cycles of each set on ``fine`` points each, as nodes of the
+    interpolant: time, total phase, amplitude and their time derivatives (Eq. 20.55 in
+    its phase plane, :func:`mcfit.phase_plane._rates`); from half-cycle ``first`` on,
+    the state ``rest`` at rest.
+
+    Parameters
+    ----------
+    amplitudes, time_rates : ndarray, shape (m, count, nodes)
+        Amplitude (U) and dt/dphi (s) at each half-cycle's collocation points.
+    start_phi, length, begins : ndarray, shape (m, count)
+        Phase of the start (rad), phase length (rad) and start time (s) of each.
+    free : ndarray, shape (3, m, count)
+        a, b, c as each half-cycle sees them (0 where the set is held).
+    omega, base : ndarray, shape (m,)
+        Angular frequency (rad/s); the multiple of pi each set's phase counts from.
+    first : ndarray of int, shape (m,)
+        Each set's first half-cycle at rest (``count`` where none is).
+    rest : ndarray, shape (m, 3)
+        Time, total phase and amplitude of each set at rest.
+    evaluate, integrate : ndarray, shape (nodes, fine) and (nodes, nodes)
+        Weights of the collocation values in the interpolant's values at ``fine_s``
+        and in its integral from 0 to each collocation point.
+    fine_s : ndarray, shape (fine,)
+        The fine points' positions in a half-cycle, from 0 to 1.
+
+    Returns
+    -------
+    ndarray, shape (5, m, count * fine)
+        Times, total phases, amplitudes, phase rates and amplitude rates.
+    """
+    m, count, size = amplitudes.shape
+    fine = fine_s.size
+    out = np.zeros((5, m, count * fine))
+    cos, sin = np.empty(fine), np.empty(fine)
+    elapsed, fine_a, fine_t = np.empty(size), np.empty(fine), np.empty(fine)
+    trig_of = -1  # the half-cycle whose phases' cos and sin are in ``cos``, ``sin``
+    for h in range(count):
+        for k in range(m):
+            at = h * fine
+            if h >= first[k]:
+                out[0, k, at:at + fine] = rest[k, 0]
+                out[1, k, at:at + fine] = rest[k, 1]
+                out[2, k, at:at + fine] = rest[k, 2]
+                continue
+            if h == 0 or trig_of != h:  # after the first, every set's phases are alike
+                trig_of = h
+                for f in range(fine):
+                    phi = start_phi[k, h] + length[k, h] * fine_s[f]
+                    cos[f], sin[f] = math.cos(phi), math.sin(phi)
+            for n in range(size):
+                integral = 0.0
+                for i in range(size):
+                    integral += time_rates[k, h, i] * integrate[n, i]
+                elapsed[n] = length[k, h] * integral
+            fine_a[:] = 0.0
+            fine_t[:] = 0.0
+            for n in range(size):  # inner loops over the fine points: vectorised
+                for f in range(fine):
+                    fine_a[f] += amplitudes[k, h, n] * evaluate[n, f]
+                    fine_t[f] += elapsed[n] * evaluate[n, f]
+            a, b, c = free[0, k, h], free[1, k, h], free[2, k, h]
+            for f in range(fine):
+                amplitude, time = fine_a[f], fine_t[f]
+                safe = amplitude if not amplitude < 1e-100 else 1e-100
+                friction = c + safe * (b + a * safe)
+                denominator = omega[k] - _HALF_PI * friction / safe * cos[f]
+                if denominator < 1e-9 * omega[k]:
+                    denominator = 1e-9 * omega[k]
+                rate = 1.0 / denominator
+                out[0, k, at + f] = begins[k, h] + time
+                out[1, k, at + f] = (base[k] + h * math.pi
+                                     + (start_phi[k, h] + length[k, h] * fine_s[f]))
+                out[2, k, at + f] = amplitude
+                out[3, k, at + f] = 1.0 / rate
+                out[4, k, at + f] = -_HALF_PI * friction * sin[f] / denominator / rate
+    return out
 
 
 @_compiled
@@ -81,11 +164,14 @@ def hermite_changes(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     phase_table = _node_changes(times, phases, phase_rates)
     amplitude_table = _node_changes(times, amplitudes, amplitude_rates)
     knots = times[0]
-    found = np.searchsorted(knots, t, side="right")
     x = np.empty(t.size)
     changes = np.empty((m - 1, t.size))
+    j = 0
     for i in range(t.size):
-        j = min(max(found[i] - 1, 0), count - 2)
+        # The interval of t[i]: the last node at or before it, at most the last but one
+        # (the nodes and samples are sorted, but for rounding at half-cycle ends).
+        while j < count - 2 and knots[j + 1] <= t[i]:
+            j += 1
         span = knots[j + 1] - knots[j]
         width = span if span > 0 else 1.0
         s = 0.0
