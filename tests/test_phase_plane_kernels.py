@@ -23,19 +23,60 @@ OMEGA = 2 * math.pi
 KERNELS = Path(phase_plane.__file__).with_name("phase_plane_kernels.py")
 
 
-def _solved(q, shares, theta0, t_end):
-    """The half-cycles of a parameter set and of its moved sets (steps of 1e-7 in y0,
-    theta0, omega and each damping term), as :func:`phase_plane.phase_plane_differences`
-    solves them, and the arguments of :func:`phase_plane._fine_nodes` after them."""
+def _sets(q, shares, theta0):
+    """Columns (m, 1) y0, phase from its multiple of pi, omega, a, b, c of a set and
+    its moved sets, and that multiple of pi."""
     rate = OMEGA / (2 * q)
     p = np.array([1.0, theta0, OMEGA] + [rate * shares.get(k, 0.0) for k in "abc"])
     moved = [0, 1, 2] + [3 + "abc".index(k) for k in shares]
     sets = p + np.vstack([np.zeros(6), np.diag(1e-7 * np.maximum(np.abs(p), 1e-3))[moved]])
     y0, theta0, omega, a, b, c = (sets[:, i:i + 1] for i in range(6))
     base = np.floor(theta0 / math.pi) * math.pi
-    first = phase_plane._first_solution(t_end, y0, theta0 - base, omega, a, b, c)
-    solved = phase_plane._chord(first, y0, theta0 - base, omega, a, b, c)
-    return solved, base, theta0 - base, omega, a, b, c
+    return (y0, theta0 - base, omega, a, b, c), base
+
+
+def _assert_same_half_cycles(found, expected):
+    """Two solutions as :func:`phase_plane._all_half_cycles` returns them, alike to the
+    Newton tolerance (1e-14 of the amplitude) and their differences between sets to
+    rounding."""
+    for values, reference in zip(found[:-1], expected[:-1]):
+        np.testing.assert_allclose(values, reference, rtol=0,
+                                   atol=2e-14 * np.max(np.abs(reference)))
+    for values, reference in zip(found[-1], expected[-1]):  # the coefficients
+        np.testing.assert_array_equal(values, reference)
+    steps, reference = found[0][1:] - found[0][0], expected[0][1:] - expected[0][0]
+    np.testing.assert_allclose(steps, reference, rtol=0, atol=1e-15)
+
+
+@pytest.mark.parametrize(("q", "shares", "theta0"), [
+    (10.0, {"b": 1.0}, -0.4),
+    (3.0, {"a": 0.2, "b": 0.7, "c": 0.1}, 7.0),
+    (2.0, {"b": 0.9, "c": 0.1}, 0.2),  # held after a Coulomb stop
+])
+def test_the_compiled_newton_steps_are_numpys(q, shares, theta0):
+    """Set 0's half-cycles by Newton's method on all at once and the moved sets' chord
+    step from them, compiled and in numpy (which the motion without numba keeps)."""
+    sets, _ = _sets(q, shares, theta0)
+    t_end = 4.0 * q
+    count = int(np.ceil((OMEGA * t_end + sets[1][0, 0]) / math.pi)) + 2
+    first = [phase_plane._all_half_cycles(count, t_end, *(v[:1] for v in sets),
+                                          kernels=compiled) for compiled in (kernels, None)]
+    _assert_same_half_cycles(*first)
+    held = first[1][3]
+    assert held.any() == ("c" in shares)
+    chords = [phase_plane._chord(first[1], *sets, kernels=compiled)
+              for compiled in (kernels, None)]
+    _assert_same_half_cycles(*chords)
+
+
+def _solved(q, shares, theta0, t_end):
+    """The half-cycles of a parameter set and of its moved sets (steps of 1e-7 in y0,
+    theta0, omega and each damping term), as :func:`phase_plane.phase_plane_differences`
+    solves them, and the arguments of :func:`phase_plane._fine_nodes` after them."""
+    sets, base = _sets(q, shares, theta0)
+    first = phase_plane._first_solution(t_end, *sets)
+    solved = phase_plane._chord(first, *sets)
+    return solved, base, *sets[1:]
 
 
 def _nodes(q, shares, theta0, t_end):

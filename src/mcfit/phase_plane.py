@@ -179,14 +179,16 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         damped = np.any(a) or np.any(b) or np.any(c)
         if damped and np.all(base == base[0]):
-            first = _first_solution(t_end, y0, theta0 - base, omega, a, b, c, memory)
+            first = _first_solution(t_end, y0, theta0 - base, omega, a, b, c, memory,
+                                    kernels)
         if first is None or first is False:
             # Where Newton's method failed for set 0 it fails for its neighbours too:
             # every set one half-cycle after the other at once.
             x = (_motion(t, y0, theta0, omega, a, b, c, at_once=first is None)
                  if damped else phase_plane_motion(t, *sets.T))
             return x[0], x[1:] - x[0]
-        solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
+        solved = (_chord(first, y0, theta0 - base, omega, a, b, c, kernels)
+                  if len(sets) > 1 else first)
         if solved is None:  # the steps are no derivatives: every set on its own
             x = _motion(t, y0, theta0, omega, a, b, c, at_once=True)
             return x[0], x[1:] - x[0]
@@ -211,10 +213,11 @@ def phase_plane_differences(t, parameters, steps, memory=None):
             np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
 
 
-def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
-    """The half-cycles of set 0 (:func:`_all_half_cycles`), started from the last
-    solution in ``memory`` where it has as many; None where they are not solved at once
-    (too many, or too few to reach ``t_end``), False where Newton's method fails."""
+def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None, kernels=None):
+    """The half-cycles of set 0 (:func:`_all_half_cycles`, compiled where ``kernels``
+    is :mod:`mcfit.phase_plane_kernels`), started from the last solution in ``memory``
+    where it has as many; None where they are not solved at once (too many, or too few
+    to reach ``t_end``), False where Newton's method fails."""
     count = float(np.ceil((omega[0, 0] * t_end + phi[0, 0]) / math.pi)) + 2
     if not _fits_at_once(count, y0.shape[0]):
         return None
@@ -229,7 +232,7 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     for guess in guesses:
         try:
             first = _all_half_cycles(count, t_end, y0[:1], phi[:1], omega[:1], a[:1], b[:1],
-                                     c[:1], guess)
+                                     c[:1], guess, kernels)
         except np.linalg.LinAlgError:
             first = None
         if isinstance(first, str):
@@ -240,14 +243,26 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     return found
 
 
-def _chord(first, y0, phi0, omega, a, b, c):
+def _chord(first, y0, phi0, omega, a, b, c, kernels=None):
     """The half-cycles of every set from one Newton step away from ``first`` (the
-    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian."""
+    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian;
+    compiled where ``kernels`` is :mod:`mcfit.phase_plane_kernels`."""
     amplitudes, _, _, held, finished, _, _, free = first
     count = held.shape[1]
     start_phi, length, phases = _grid(count, phi0)
     omega3 = omega[..., None]
     held = np.broadcast_to(held, (y0.shape[0], count))
+    if kernels is not None:
+        free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
+        fixed = _collocation_arguments(y0, phases, length, omega, free)
+        residual, _, d_slope = kernels.collocation_residuals(amplitudes, *fixed)
+        step = kernels.collocation_steps(d_slope[0], fixed[2][0], residual, _INTEGRATE)
+        guess = amplitudes + step
+        residual, time_rate, _ = kernels.collocation_residuals(guess, *fixed)
+        if not _small(residual, step, amplitudes):
+            return None
+        return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
+                _begins(length, time_rate, held), time_rate, free)
     trig = _trig(phases)
     _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free,
                            trig=(trig[0][:1], trig[1][:1]))
@@ -265,6 +280,14 @@ def _chord(first, y0, phi0, omega, a, b, c):
         return None
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
             _begins(length, time_rate, held), time_rate, free)
+
+
+def _collocation_arguments(y0, phases, length, omega, free):
+    """The arguments of :func:`mcfit.phase_plane_kernels.collocation_residuals` after the
+    amplitudes, from columns (m, 1) and arrays (m, count, 1) of the numpy functions."""
+    return (np.ascontiguousarray(y0[:, 0]), phases, np.ascontiguousarray(length[..., 0]),
+            np.ascontiguousarray(omega[:, 0]), np.stack([k[..., 0] for k in free]),
+            _INTEGRATE)
 
 
 def _small(residual, step, scale):
@@ -382,7 +405,7 @@ def _nodes(t_end, amplitude, theta0, omega, a, b, c):
     return _fine_nodes(solved, base, phi, omega, a, b, c)
 
 
-def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
+def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None, kernels=None):
     """The collocation amplitudes of ``count`` successive half-cycles of every set, by
     Newton's method on all of them at once (multiple shooting).
 
@@ -392,7 +415,8 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
     averaged law at each half-cycle's start (within O(1/Q) of the solution), or ``guess``
     (amplitudes, shape (m, count, NODES)). Returns (amplitudes, start phases, lengths,
     held, finished, start times, time rates, coefficients as held sets see them), "short"
-    when the half-cycles end before ``t_end``, None without convergence."""
+    when the half-cycles end before ``t_end``, None without convergence. ``kernels``:
+    :mod:`mcfit.phase_plane_kernels` for the compiled iteration."""
     start_phi, length, phases = _grid(count, phi0)
     index = np.arange(count)
     if guess is None:
@@ -405,11 +429,18 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
     for _ in range(_GLOBAL_ITERATIONS):
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
         free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-        slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
-        residual = _residual(guess, y0, length, slope)
-        jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
-        both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
-        step = _steps(both[..., 0], both[..., 1])
+        if kernels is None:
+            slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
+            residual = _residual(guess, y0, length, slope)
+            jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
+            both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
+            step = _steps(both[..., 0], both[..., 1])
+        else:
+            fixed = _collocation_arguments(y0, phases, length, omega, free)
+            residual, time_rate, d_slope = kernels.collocation_residuals(guess, *fixed)
+            step = np.concatenate([kernels.collocation_steps(
+                d_slope[i], fixed[2][i], residual[i:i + 1], _INTEGRATE)
+                for i in range(len(guess))])
         guess = guess + step
         begins = _begins(length, time_rate, held)
         relevant = ~held & (begins < t_end)

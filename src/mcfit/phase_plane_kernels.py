@@ -1,7 +1,7 @@
 """Compiled loops of :func:`mcfit.phase_plane.phase_plane_differences` (numba).
 
 Only the waveform fit's evaluation imports this module: numba's import costs far more
-than a one-record run of the turning-point fit (README, "Speed"). The compiled code is
+than a one-record run of the turning-point fit (README, "Dependencies"). The compiled code is
 cached beside this file, else in the user's cache folder (numba's own fallback); where
 neither is writable it is compiled in each process, uncached.
 """
@@ -13,7 +13,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["fine_nodes", "hermite_changes"]
+__all__ = ["collocation_residuals", "collocation_steps", "fine_nodes", "hermite_changes"]
 
 _HALF_PI = 0.5 * math.pi
 
@@ -26,6 +26,124 @@ def _compiled(function):
         return numba.njit(cache=True, **options)(function)
     except RuntimeError:  # "cannot cache function ...: no locator available"
         return numba.njit(**options)(function)
+
+
+@_compiled
+def _rates(amplitude, cos, sin, omega, a, b, c):
+    """dA/dphi, dt/dphi and d(dA/dphi)/dA at one state (:func:`mcfit.phase_plane._rates`,
+    the same operations)."""
+    safe = amplitude if not amplitude < 1e-100 else 1e-100
+    friction = c + safe * (b + a * safe)
+    denominator = omega - _HALF_PI * friction / safe * cos
+    if denominator < 1e-9 * omega:
+        denominator = 1e-9 * omega
+    slope = -_HALF_PI * friction * sin / denominator
+    d_denominator = -_HALF_PI * (a - c / (safe * safe)) * cos
+    d_slope = -_HALF_PI * sin * ((b + 2 * a * safe) - friction * d_denominator / denominator)
+    return slope, 1.0 / denominator, d_slope / denominator
+
+
+@_compiled
+def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate):
+    """The collocation equations A = A_start + L*S*f(A) of every half-cycle of each set
+    (A_start the end of the one before, ``y0`` for the first): residuals, and dt/dphi
+    and d(dA/dphi)/dA at the collocation points.
+
+    Parameters
+    ----------
+    amplitudes : ndarray, shape (m or 1, count, nodes)
+        Amplitudes (U) at the collocation points; one row: every set's.
+    y0, omega : ndarray, shape (m,)
+        Amplitude at the start (U), angular frequency (rad/s).
+    phases : ndarray, shape (m, count, nodes)
+        Collocation phases (rad); after the first half-cycle every set's are alike.
+    length : ndarray, shape (m, count)
+        Phase length (rad) of each half-cycle.
+    free : ndarray, shape (3, m, count)
+        a, b, c as each half-cycle sees them (0 where the set is held).
+    integrate : ndarray, shape (nodes, nodes)
+        Weights of the values at the collocation points in the interpolant's integral
+        from 0 to each.
+
+    Returns
+    -------
+    residual, time_rate, d_slope : ndarray, shape (m, count, nodes)
+    """
+    m, count, size = phases.shape
+    rows = amplitudes.shape[0]
+    residual = np.empty((m, count, size))
+    time_rate = np.empty((m, count, size))
+    d_slope = np.empty((m, count, size))
+    cos, sin = np.empty((count, size)), np.empty((count, size))
+    slope = np.empty(size)
+    for k in range(m):
+        values = amplitudes[min(k, rows - 1)]
+        for h in range(count):
+            if k == 0 or h == 0:
+                for n in range(size):
+                    cos[h, n], sin[h, n] = math.cos(phases[k, h, n]), math.sin(phases[k, h, n])
+            for n in range(size):
+                slope[n], time_rate[k, h, n], d_slope[k, h, n] = _rates(
+                    values[h, n], cos[h, n], sin[h, n], omega[k], free[0, k, h],
+                    free[1, k, h], free[2, k, h])
+            entering = y0[k] if h == 0 else values[h - 1, size - 1]
+            for n in range(size):
+                integral = 0.0
+                for i in range(size):
+                    integral += slope[i] * integrate[n, i]
+                residual[k, h, n] = values[h, n] - entering - length[k, h] * integral
+    return residual, time_rate, d_slope
+
+
+@_compiled
+def collocation_steps(d_slope, length, residual, integrate):
+    """Newton steps of every half-cycle of each set with one set's Jacobian, the
+    half-cycles solved together (:func:`mcfit.phase_plane._all_half_cycles`): each
+    one's own step plus its response to a unit change of its start times the step of the
+    end of the one before.
+
+    Parameters
+    ----------
+    d_slope : ndarray, shape (count, nodes)
+        d(dA/dphi)/dA of the set whose Jacobian is taken, at the collocation points.
+    length : ndarray, shape (count,)
+        That set's phase lengths (rad).
+    residual : ndarray, shape (m, count, nodes)
+        Each set's residuals (:func:`collocation_residuals`).
+    integrate : ndarray, shape (nodes, nodes)
+        As for :func:`collocation_residuals`.
+
+    Returns
+    -------
+    ndarray, shape (m, count, nodes)
+        The steps to add to the amplitudes (U).
+    """
+    m, count, size = residual.shape
+    own = np.empty((m, count, size))
+    carried = np.empty((count, size))
+    jacobian = np.empty((size, size))
+    right = np.empty((size, m + 1))
+    for h in range(count):
+        for r in range(size):
+            for n in range(size):
+                jacobian[r, n] = (1.0 if r == n else 0.0) - length[h] * integrate[r, n] * (
+                    d_slope[h, n])
+            for k in range(m):
+                right[r, k] = -residual[k, h, r]
+            right[r, m] = 1.0
+        both = np.linalg.solve(jacobian, right)
+        for r in range(size):
+            for k in range(m):
+                own[k, h, r] = both[r, k]
+            carried[h, r] = both[r, m]
+    steps = np.empty((m, count, size))
+    for k in range(m):
+        end = 0.0  # the step of the end of the half-cycle before
+        for h in range(count):
+            for r in range(size):
+                steps[k, h, r] = own[k, h, r] + carried[h, r] * end
+            end = steps[k, h, size - 1]
+    return steps
 
 
 @_compiled
@@ -93,19 +211,13 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
                     fine_t[f] += elapsed[n] * evaluate[n, f]
             a, b, c = free[0, k, h], free[1, k, h], free[2, k, h]
             for f in range(fine):
-                amplitude, time = fine_a[f], fine_t[f]
-                safe = amplitude if not amplitude < 1e-100 else 1e-100
-                friction = c + safe * (b + a * safe)
-                denominator = omega[k] - _HALF_PI * friction / safe * cos[f]
-                if denominator < 1e-9 * omega[k]:
-                    denominator = 1e-9 * omega[k]
-                rate = 1.0 / denominator
-                out[0, k, at + f] = begins[k, h] + time
+                slope, rate, _ = _rates(fine_a[f], cos[f], sin[f], omega[k], a, b, c)
+                out[0, k, at + f] = begins[k, h] + fine_t[f]
                 out[1, k, at + f] = (base[k] + h * math.pi
                                      + (start_phi[k, h] + length[k, h] * fine_s[f]))
-                out[2, k, at + f] = amplitude
+                out[2, k, at + f] = fine_a[f]
                 out[3, k, at + f] = 1.0 / rate
-                out[4, k, at + f] = -_HALF_PI * friction * sin[f] / denominator / rate
+                out[4, k, at + f] = slope / rate
     return out
 
 
