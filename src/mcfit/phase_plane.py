@@ -67,7 +67,8 @@ def _chebyshev_matrices(nodes, fine):
 
 _S, _INTEGRATE, _EVALUATE = _chebyshev_matrices(NODES, FINE)
 _FINE_S = np.linspace(0.0, 1.0, FINE)
-_EVALUATE_T = np.ascontiguousarray(_EVALUATE.T)
+# The kernels' copies, in one memory layout (numba compiles one version per layout).
+_EVALUATE_T, _INTEGRATE_C = np.ascontiguousarray(_EVALUATE.T), np.ascontiguousarray(_INTEGRATE)
 
 
 def _rates(amplitude, phi, omega, a, b, c, trig=None, derivative=True):
@@ -243,40 +244,25 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None, kernels=None):
     return found
 
 
-def _chord(first, y0, phi0, omega, a, b, c, kernels=None):
+def _chord(first, y0, phi0, omega, a, b, c, kernels):
     """The half-cycles of every set from one Newton step away from ``first`` (the
-    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian;
-    compiled where ``kernels`` is :mod:`mcfit.phase_plane_kernels`."""
-    amplitudes, _, _, held, finished, _, _, free = first
+    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian; the
+    equations compiled (``kernels``: :mod:`mcfit.phase_plane_kernels`)."""
+    amplitudes, _, _, held, finished, _, _, _ = first
     count = held.shape[1]
     start_phi, length, phases = _grid(count, phi0)
-    omega3 = omega[..., None]
     held = np.broadcast_to(held, (y0.shape[0], count))
-    if kernels is not None:
-        free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-        fixed = _collocation_arguments(y0, phases, length, omega, free)
-        residual, _, d_slope = kernels.collocation_residuals(amplitudes, *fixed)
-        step = kernels.collocation_steps(d_slope[0], fixed[2][0], residual, _INTEGRATE)
-        guess = amplitudes + step
-        residual, time_rate, _ = kernels.collocation_residuals(guess, *fixed)
-        if not _small(residual, step, amplitudes):
-            return None
-        return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
-                _begins(length, time_rate, held), time_rate, free)
-    trig = _trig(phases)
-    _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free,
-                           trig=(trig[0][:1], trig[1][:1]))
-    jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
     free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    slope, _, _ = _rates(amplitudes, phases, omega3, *free, trig=trig, derivative=False)
-    residual = _residual(amplitudes, y0, length, slope)
+    fixed = _collocation_arguments(y0, phases, length, omega, free)
+    residual, _, d_slope = kernels.collocation_residuals(amplitudes, *fixed)
+    jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
     both = np.linalg.solve(jacobian, np.concatenate(
         [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
     own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
     step = _steps(own, carried)
     guess = amplitudes + step
-    slope, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
-    if not _small(_residual(guess, y0, length, slope), step, amplitudes):
+    residual, time_rate, _ = kernels.collocation_residuals(guess, *fixed)
+    if not _small(residual, step, amplitudes):
         return None
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
             _begins(length, time_rate, held), time_rate, free)
@@ -287,7 +273,7 @@ def _collocation_arguments(y0, phases, length, omega, free):
     amplitudes, from columns (m, 1) and arrays (m, count, 1) of the numpy functions."""
     return (np.ascontiguousarray(y0[:, 0]), phases, np.ascontiguousarray(length[..., 0]),
             np.ascontiguousarray(omega[:, 0]), np.stack([k[..., 0] for k in free]),
-            _INTEGRATE)
+            _INTEGRATE_C)
 
 
 def _small(residual, step, scale):
@@ -416,7 +402,7 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None, kernels
     (amplitudes, shape (m, count, NODES)). Returns (amplitudes, start phases, lengths,
     held, finished, start times, time rates, coefficients as held sets see them), "short"
     when the half-cycles end before ``t_end``, None without convergence. ``kernels``:
-    :mod:`mcfit.phase_plane_kernels` for the compiled iteration."""
+    :mod:`mcfit.phase_plane_kernels` for the equations compiled."""
     start_phi, length, phases = _grid(count, phi0)
     index = np.arange(count)
     if guess is None:
@@ -432,15 +418,12 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None, kernels
         if kernels is None:
             slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
             residual = _residual(guess, y0, length, slope)
-            jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
-            both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
-            step = _steps(both[..., 0], both[..., 1])
         else:
-            fixed = _collocation_arguments(y0, phases, length, omega, free)
-            residual, time_rate, d_slope = kernels.collocation_residuals(guess, *fixed)
-            step = np.concatenate([kernels.collocation_steps(
-                d_slope[i], fixed[2][i], residual[i:i + 1], _INTEGRATE)
-                for i in range(len(guess))])
+            residual, time_rate, d_slope = kernels.collocation_residuals(
+                guess, *_collocation_arguments(y0, phases, length, omega, free))
+        jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
+        both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
+        step = _steps(both[..., 0], both[..., 1])
         guess = guess + step
         begins = _begins(length, time_rate, held)
         relevant = ~held & (begins < t_end)
@@ -500,13 +483,15 @@ def _fine_nodes(solved, base, phi, omega, a, b, c, kernels=None):
     final[stops] = np.column_stack([begins[rows, h], amplitudes[rows, h, 0],
                                     np.cos(base[:, 0] + h * math.pi)])[stops]
     if kernels is not None:
-        shape = (m, count)
+        def fitted(v):  # writable and C-ordered, as the kernels are compiled for
+            return np.array(np.broadcast_to(v, (m, count)), dtype=float)
+
         nodes = kernels.fine_nodes(
-            amplitudes, time_rate, np.broadcast_to(start_phi[..., 0], shape),
-            np.broadcast_to(length[..., 0], shape), begins,
-            np.stack([np.broadcast_to(k[..., 0], shape) for k in free]), omega[:, 0],
-            base[:, 0], first, np.column_stack([stop_t, stop_phase, stop_a]),
-            _EVALUATE_T, _INTEGRATE, _FINE_S)
+            np.ascontiguousarray(amplitudes), np.ascontiguousarray(time_rate),
+            fitted(start_phi[..., 0]), fitted(length[..., 0]), fitted(begins),
+            np.stack([fitted(k[..., 0]) for k in free]), np.array(omega[:, 0]),
+            np.array(base[:, 0]), first, np.column_stack([stop_t, stop_phase, stop_a]),
+            _EVALUATE_T, _INTEGRATE_C, _FINE_S)
         return tuple(nodes) + (final,)
     fine_a = amplitudes @ _EVALUATE.T
     fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T

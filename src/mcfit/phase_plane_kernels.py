@@ -1,9 +1,9 @@
 """Compiled loops of :func:`mcfit.phase_plane.phase_plane_differences` (numba).
 
 Only the waveform fit's evaluation imports this module: numba's import costs far more
-than a one-record run of the turning-point fit (README, "Dependencies"). The compiled code is
-cached beside this file, else in the user's cache folder (numba's own fallback); where
-neither is writable it is compiled in each process, uncached.
+than a one-record run of the turning-point fit (README, "Dependencies"). The compiled
+code is cached beside this file, else in the user's cache folder (numba's own fallback);
+where neither is writable it is compiled in each process, uncached.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import math
 import numba
 import numpy as np
 
-__all__ = ["collocation_residuals", "collocation_steps", "fine_nodes", "hermite_changes"]
+__all__ = ["collocation_residuals", "fine_nodes", "hermite_changes"]
 
 _HALF_PI = 0.5 * math.pi
 
@@ -93,57 +93,6 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
                     integral += slope[i] * integrate[n, i]
                 residual[k, h, n] = values[h, n] - entering - length[k, h] * integral
     return residual, time_rate, d_slope
-
-
-@_compiled
-def collocation_steps(d_slope, length, residual, integrate):
-    """Newton steps of every half-cycle of each set with one set's Jacobian, the
-    half-cycles solved together (:func:`mcfit.phase_plane._all_half_cycles`): each
-    one's own step plus its response to a unit change of its start times the step of the
-    end of the one before.
-
-    Parameters
-    ----------
-    d_slope : ndarray, shape (count, nodes)
-        d(dA/dphi)/dA of the set whose Jacobian is taken, at the collocation points.
-    length : ndarray, shape (count,)
-        That set's phase lengths (rad).
-    residual : ndarray, shape (m, count, nodes)
-        Each set's residuals (:func:`collocation_residuals`).
-    integrate : ndarray, shape (nodes, nodes)
-        As for :func:`collocation_residuals`.
-
-    Returns
-    -------
-    ndarray, shape (m, count, nodes)
-        The steps to add to the amplitudes (U).
-    """
-    m, count, size = residual.shape
-    own = np.empty((m, count, size))
-    carried = np.empty((count, size))
-    jacobian = np.empty((size, size))
-    right = np.empty((size, m + 1))
-    for h in range(count):
-        for r in range(size):
-            for n in range(size):
-                jacobian[r, n] = (1.0 if r == n else 0.0) - length[h] * integrate[r, n] * (
-                    d_slope[h, n])
-            for k in range(m):
-                right[r, k] = -residual[k, h, r]
-            right[r, m] = 1.0
-        both = np.linalg.solve(jacobian, right)
-        for r in range(size):
-            for k in range(m):
-                own[k, h, r] = both[r, k]
-            carried[h, r] = both[r, m]
-    steps = np.empty((m, count, size))
-    for k in range(m):
-        end = 0.0  # the step of the end of the half-cycle before
-        for h in range(count):
-            for r in range(size):
-                steps[k, h, r] = own[k, h, r] + carried[h, r] * end
-            end = steps[k, h, size - 1]
-    return steps
 
 
 @_compiled
