@@ -20,9 +20,9 @@ Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md sectio
 The half-cycles are solved all at once, by one Newton iteration over all their
 collocation equations (:func:`_all_half_cycles`), started from the averaged law; the
 functions take arrays of parameter sets (shape (m,)). :func:`phase_plane_differences`
-gives a forward-difference Jacobian from one solution; its per-sample loops are compiled
-(:mod:`mcfit.phase_plane_kernels`, numba, imported there only: :func:`phase_plane_motion`
-stays numpy alone).
+gives a forward-difference Jacobian from one solution; its loops over the collocation
+equations, the fine points and the samples are compiled (:mod:`mcfit.phase_plane_kernels`,
+numba, imported there only: :func:`phase_plane_motion` stays numpy alone).
 """
 
 from __future__ import annotations

@@ -224,7 +224,7 @@ def hermite_changes(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     m, count = times.shape
     phase_table = _node_changes(times, phases, phase_rates)
     amplitude_table = _node_changes(times, amplitudes, amplitude_rates)
-    knots = times[0]
+    knots, p, q = times[0], phase_table, amplitude_table
     x = np.empty(t.size)
     changes = np.empty((m - 1, t.size))
     j = 0
@@ -255,7 +255,6 @@ def hermite_changes(t, times, phases, amplitudes, phase_rates, amplitude_rates):
         x[i] = amplitude * cos
         along = -amplitude * sin  # dx/dphase; dx/damplitude is cos
         for k in range(m - 1):
-            p, q = phase_table, amplitude_table
             changes[k, i] = (
                 along * (h00 * p[j, k, 0] + h01 * p[j + 1, k, 0] + h10 * p[j, k, 1]
                          + h11 * p[j, k, 2])
