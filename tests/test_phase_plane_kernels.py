@@ -134,6 +134,21 @@ def test_the_interpolant_and_its_changes_are_scipys_splines(q, shares, theta0):
     assert np.max(np.abs(changes[:, before] - expected) / scale) < 1e-5
 
 
+def test_one_compiled_version_serves_every_layout():
+    """Times as a strided view give the same numbers through the version compiled for
+    contiguous arrays (another would cost a compilation in every new process)."""
+    every = np.linspace(0.0, 20.0, 4001)
+    parameters = np.array([1.0, 0.3, OMEGA, 0.05, 0.3, 0.01])
+    steps = 1e-7 * np.eye(6)
+    strided = phase_plane.phase_plane_differences(every[::2], parameters, steps)
+    contiguous = phase_plane.phase_plane_differences(every[::2].copy(), parameters, steps)
+    for found, expected in zip(strided, contiguous):
+        np.testing.assert_array_equal(found, expected)
+    for kernel in (kernels.hermite_changes, kernels.fine_nodes,
+                   kernels.collocation_residuals):
+        assert len(kernel.signatures) == 1, kernel.signatures
+
+
 def test_numba_stays_off_the_turning_point_path():
     """A record that keeps the turning-point fit (Q about 160) is analysed without
     importing numba; the amplitude form's evaluation imports it."""

@@ -170,7 +170,7 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     """
     from mcfit import phase_plane_kernels as kernels  # numba: on the waveform fit's path only
 
-    t = np.asarray(t, dtype=float)
+    t = np.ascontiguousarray(t, dtype=float)  # the layout the kernels are compiled for
     sets = np.asarray(parameters, dtype=float)[None, :] + np.vstack(
         [np.zeros((1, 6)), np.asarray(steps, dtype=float)])
     y0, theta0, omega, a, b, c = (sets[:, i:i + 1] for i in range(6))
