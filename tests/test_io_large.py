@@ -86,6 +86,11 @@ with contextlib.redirect_stderr(err):
     except SystemExit as exc:
         code = exc.code
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+try:  # Linux: this process's own peak (ru_maxrss keeps the parent's from before exec)
+    with open("/proc/self/status") as status:
+        peak = next(int(row.split()[1]) for row in status if row.startswith("VmHWM")) / 1024
+except (OSError, StopIteration):
+    pass
 print(json.dumps({"code": code, "err": err.getvalue().strip().splitlines()[-1:], "peak": peak}))
 """
 

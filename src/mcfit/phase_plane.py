@@ -20,7 +20,9 @@ Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md sectio
 The half-cycles are solved all at once, by one Newton iteration over all their
 collocation equations (:func:`_all_half_cycles`), started from the averaged law; the
 functions take arrays of parameter sets (shape (m,)). :func:`phase_plane_differences`
-gives a forward-difference Jacobian from one solution. numpy and scipy.sparse only.
+gives a forward-difference Jacobian from one solution; its loops over the collocation
+equations, the fine points and the samples are compiled (:mod:`mcfit.phase_plane_kernels`,
+numba, imported there only: :func:`phase_plane_motion` stays numpy alone).
 """
 
 from __future__ import annotations
@@ -29,7 +31,6 @@ import math
 
 import numpy as np
 from numpy.polynomial import chebyshev
-from scipy import sparse
 
 from mcfit import decay
 
@@ -66,6 +67,8 @@ def _chebyshev_matrices(nodes, fine):
 
 _S, _INTEGRATE, _EVALUATE = _chebyshev_matrices(NODES, FINE)
 _FINE_S = np.linspace(0.0, 1.0, FINE)
+# The kernels' copies, in one memory layout (numba compiles one version per layout).
+_EVALUATE_T, _INTEGRATE_C = np.ascontiguousarray(_EVALUATE.T), np.ascontiguousarray(_INTEGRATE)
 
 
 def _rates(amplitude, phi, omega, a, b, c, trig=None, derivative=True):
@@ -158,14 +161,16 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     The moved sets take one Newton step from the solution at ``parameters`` with its
     Jacobian (the chord method: the error is of the order of the squared step). Their
     change at fixed time is the interpolant's, differentiated in its nodes
-    (:func:`_linear_changes`), at any damping. The last swings of a decay that stops are
-    solved for set 0 and followed to first order by the others
+    (:func:`mcfit.phase_plane_kernels.hermite_changes`), at any damping. The last swings
+    of a decay that stops are solved for set 0 and followed to first order by the others
     (:func:`_neighbour_swings`), or for every set on its own where a set's swings differ
     in kind; where a moved set counts its half-cycles from another multiple of pi, every
     set is solved on its own and the changes are differences of
     :func:`phase_plane_motion`.
     """
-    t = np.asarray(t, dtype=float)
+    from mcfit import phase_plane_kernels as kernels  # numba: on the waveform fit's path only
+
+    t = np.ascontiguousarray(t, dtype=float)  # the layout the kernels are compiled for
     sets = np.asarray(parameters, dtype=float)[None, :] + np.vstack(
         [np.zeros((1, 6)), np.asarray(steps, dtype=float)])
     y0, theta0, omega, a, b, c = (sets[:, i:i + 1] for i in range(6))
@@ -175,21 +180,21 @@ def phase_plane_differences(t, parameters, steps, memory=None):
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
         damped = np.any(a) or np.any(b) or np.any(c)
         if damped and np.all(base == base[0]):
-            first = _first_solution(t_end, y0, theta0 - base, omega, a, b, c, memory)
+            first = _first_solution(t_end, y0, theta0 - base, omega, a, b, c, memory,
+                                    kernels)
         if first is None or first is False:
             # Where Newton's method failed for set 0 it fails for its neighbours too:
             # every set one half-cycle after the other at once.
             x = (_motion(t, y0, theta0, omega, a, b, c, at_once=first is None)
                  if damped else phase_plane_motion(t, *sets.T))
             return x[0], x[1:] - x[0]
-        solved = _chord(first, y0, theta0 - base, omega, a, b, c) if len(sets) > 1 else first
+        solved = (_chord(first, y0, theta0 - base, omega, a, b, c, kernels)
+                  if len(sets) > 1 else first)
         if solved is None:  # the steps are no derivatives: every set on its own
             x = _motion(t, y0, theta0, omega, a, b, c, at_once=True)
             return x[0], x[1:] - x[0]
-        *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c)
-        j, basis, amplitude, phase = _interpolated(t, *(v[0] for v in nodes))
-        x = amplitude * np.cos(phase)
-        changes = _linear_changes(nodes, j, basis, amplitude, phase)
+        *nodes, final = _fine_nodes(solved, base, theta0 - base, omega, a, b, c, kernels)
+        x, changes = kernels.hermite_changes(t, *nodes)
         stops = final[:, 0]
         swung = None
         if np.isfinite(stops[0]) and t[-1] >= stops[0]:
@@ -209,54 +214,11 @@ def phase_plane_differences(t, parameters, steps, memory=None):
             np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
 
 
-def _linear_changes(nodes, j, basis, amplitude, phase):
-    """The changes of the moved sets (rows 1 on of ``nodes``) at samples in node interval
-    ``j`` of set 0 with Hermite ``basis`` there (:func:`_interpolated`), where set 0 has
-    ``amplitude`` and total ``phase``: the interpolant differentiated in its nodes'
-    times, values and rates, exact to first order in their changes (past the last node,
-    at rest, the change of its state).
-
-    In an interval the change of phase or amplitude at a fixed time is itself a cubic
-    Hermite interpolant in s: of its changes at fixed time at the two nodes and of its
-    slopes in s there (the nodes' rates' changes, less the interpolant's second
-    derivative times the nodes' shifts in time). Those per node and interval, then one
-    sparse row per sample weighs them."""
-    times = nodes[0]
-    count, sets = times.shape[1], times.shape[0] - 1
-    span = np.diff(times[0])
-    width = np.where(span > 0, span, 1.0)[:, None]
-    shift = times.T[:, 1:] - times.T[:, :1]  # (nodes, sets)
-    # Per node and set: for the phase, then the amplitude, the change at fixed time, and
-    # the slopes in s at the start and at the end of the interval the node starts.
-    table = np.zeros((count, 6, sets))
-    for k, (value, rate) in ((0, (nodes[1].T, nodes[3].T)), (3, (nodes[2].T, nodes[4].T))):
-        p, m = value[:, :1], rate[:, :1]
-        m0, m1, mean = m[:-1], m[1:], (p[1:] - p[:-1]) / width
-        rate_change = rate[:, 1:] - rate[:, :1]
-        np.subtract(value[:, 1:] - p, m * shift, out=table[:, k])
-        # The slopes: the rates' changes, less the derivative in s of the interpolant's
-        # rate at either end times the node's shift in time.
-        np.subtract(rate_change[:-1] * width, (6 * mean - 4 * m0 - 2 * m1) * shift[:-1],
-                    out=table[:-1, k + 1])
-        np.subtract(rate_change[1:] * width, (2 * m0 + 4 * m1 - 6 * mean) * shift[1:],
-                    out=table[:-1, k + 2])
-    n = j.size
-    weights = np.empty((n, 8))
-    for k, dx in ((0, -amplitude * np.sin(phase)), (4, np.cos(phase))):  # dx/dphase, dA
-        for i, h in enumerate(basis):
-            np.multiply(dx, h, out=weights[:, k + i])
-    # Columns: the change at the interval's two nodes, then its two slopes; 32-bit
-    # indices, which scipy would otherwise make at thrice the product's cost.
-    at = 6 * j.astype(np.int32)[:, None] + np.array([0, 6, 1, 2, 3, 9, 4, 5], dtype=np.int32)
-    matrix = sparse.csr_matrix((weights.ravel(), at.ravel(), np.arange(
-        0, 8 * n + 1, 8, dtype=np.int32)), shape=(n, 6 * count))
-    return np.ascontiguousarray((matrix @ table.reshape(6 * count, sets)).T)
-
-
-def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
-    """The half-cycles of set 0 (:func:`_all_half_cycles`), started from the last
-    solution in ``memory`` where it has as many; None where they are not solved at once
-    (too many, or too few to reach ``t_end``), False where Newton's method fails."""
+def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None, kernels=None):
+    """The half-cycles of set 0 (:func:`_all_half_cycles`, compiled where ``kernels``
+    is :mod:`mcfit.phase_plane_kernels`), started from the last solution in ``memory``
+    where it has as many; None where they are not solved at once (too many, or too few
+    to reach ``t_end``), False where Newton's method fails."""
     count = float(np.ceil((omega[0, 0] * t_end + phi[0, 0]) / math.pi)) + 2
     if not _fits_at_once(count, y0.shape[0]):
         return None
@@ -271,7 +233,7 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     for guess in guesses:
         try:
             first = _all_half_cycles(count, t_end, y0[:1], phi[:1], omega[:1], a[:1], b[:1],
-                                     c[:1], guess)
+                                     c[:1], guess, kernels)
         except np.linalg.LinAlgError:
             first = None
         if isinstance(first, str):
@@ -282,31 +244,36 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None):
     return found
 
 
-def _chord(first, y0, phi0, omega, a, b, c):
+def _chord(first, y0, phi0, omega, a, b, c, kernels):
     """The half-cycles of every set from one Newton step away from ``first`` (the
-    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian."""
-    amplitudes, _, _, held, finished, _, _, free = first
+    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian; the
+    equations compiled (``kernels``: :mod:`mcfit.phase_plane_kernels`)."""
+    amplitudes, _, _, held, finished, _, _, _ = first
     count = held.shape[1]
     start_phi, length, phases = _grid(count, phi0)
-    omega3 = omega[..., None]
     held = np.broadcast_to(held, (y0.shape[0], count))
-    trig = _trig(phases)
-    _, _, d_slope = _rates(amplitudes, phases[:1], omega3[:1], *free,
-                           trig=(trig[0][:1], trig[1][:1]))
-    jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
     free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    slope, _, _ = _rates(amplitudes, phases, omega3, *free, trig=trig, derivative=False)
-    residual = _residual(amplitudes, y0, length, slope)
+    fixed = _collocation_arguments(y0, phases, length, omega, free)
+    residual, _, d_slope = kernels.collocation_residuals(amplitudes, *fixed)
+    jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
     both = np.linalg.solve(jacobian, np.concatenate(
         [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
     own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
     step = _steps(own, carried)
     guess = amplitudes + step
-    slope, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
-    if not _small(_residual(guess, y0, length, slope), step, amplitudes):
+    residual, time_rate, _ = kernels.collocation_residuals(guess, *fixed)
+    if not _small(residual, step, amplitudes):
         return None
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
             _begins(length, time_rate, held), time_rate, free)
+
+
+def _collocation_arguments(y0, phases, length, omega, free):
+    """The arguments of :func:`mcfit.phase_plane_kernels.collocation_residuals` after the
+    amplitudes, from columns (m, 1) and arrays (m, count, 1) of the numpy functions."""
+    return (np.ascontiguousarray(y0[:, 0]), phases, np.ascontiguousarray(length[..., 0]),
+            np.ascontiguousarray(omega[:, 0]), np.stack([k[..., 0] for k in free]),
+            _INTEGRATE_C)
 
 
 def _small(residual, step, scale):
@@ -424,7 +391,7 @@ def _nodes(t_end, amplitude, theta0, omega, a, b, c):
     return _fine_nodes(solved, base, phi, omega, a, b, c)
 
 
-def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
+def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None, kernels=None):
     """The collocation amplitudes of ``count`` successive half-cycles of every set, by
     Newton's method on all of them at once (multiple shooting).
 
@@ -434,7 +401,8 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
     averaged law at each half-cycle's start (within O(1/Q) of the solution), or ``guess``
     (amplitudes, shape (m, count, NODES)). Returns (amplitudes, start phases, lengths,
     held, finished, start times, time rates, coefficients as held sets see them), "short"
-    when the half-cycles end before ``t_end``, None without convergence."""
+    when the half-cycles end before ``t_end``, None without convergence. ``kernels``:
+    :mod:`mcfit.phase_plane_kernels` for the equations compiled."""
     start_phi, length, phases = _grid(count, phi0)
     index = np.arange(count)
     if guess is None:
@@ -447,8 +415,12 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None):
     for _ in range(_GLOBAL_ITERATIONS):
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
         free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-        slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
-        residual = _residual(guess, y0, length, slope)
+        if kernels is None:
+            slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
+            residual = _residual(guess, y0, length, slope)
+        else:
+            residual, time_rate, d_slope = kernels.collocation_residuals(
+                guess, *_collocation_arguments(y0, phases, length, omega, free))
         jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
         both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
         step = _steps(both[..., 0], both[..., 1])
@@ -492,33 +464,46 @@ def _begins(length, time_rate, held):
     return np.cumsum(durations, axis=1) - durations
 
 
-def _fine_nodes(solved, base, phi, omega, a, b, c):
+def _fine_nodes(solved, base, phi, omega, a, b, c, kernels=None):
     """The solved half-cycles on FINE points each; from the first finished half-cycle on
-    (held, or starting after the record) the state of its start, at rest."""
+    (held, or starting after the record) the state of its start, at rest. ``kernels``:
+    :mod:`mcfit.phase_plane_kernels` where the caller has loaded it (the same nodes,
+    compiled)."""
     amplitudes, start_phi, length, held, finished, begins, time_rate, free = solved
     m, count = held.shape
-    fine_a = amplitudes @ _EVALUATE.T
-    fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T
-    fine_phi = start_phi + length * _FINE_S
-    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free,
-                                 trig=_trig(fine_phi), derivative=False)
-    total = base[..., None] + np.arange(count)[:, None] * math.pi + fine_phi
     first = np.where(np.any(finished, axis=1), np.argmax(finished, axis=1), count)
     rows = np.arange(m)
     last = np.minimum(first, count - 1)
     stop_t = begins[rows, last]
     stop_phase = base[:, 0] + last * math.pi + start_phi[rows, last, 0]
     stop_a = amplitudes[rows, last, 0]
-    rest = (np.arange(count) >= first[:, None])[..., None]
-    nodes = (np.where(rest, stop_t[:, None, None], fine_t),
-             np.where(rest, stop_phase[:, None, None], total),
-             np.where(rest, stop_a[:, None, None], fine_a),
-             np.where(rest, 0.0, 1.0 / fine_rate), np.where(rest, 0.0, slope / fine_rate))
     final = np.full((m, 3), np.inf)
     stops = np.any(held, axis=1)
     h = np.argmax(held, axis=1)
     final[stops] = np.column_stack([begins[rows, h], amplitudes[rows, h, 0],
                                     np.cos(base[:, 0] + h * math.pi)])[stops]
+    if kernels is not None:
+        def fitted(v):  # writable and C-ordered, as the kernels are compiled for
+            return np.array(np.broadcast_to(v, (m, count)), dtype=float)
+
+        nodes = kernels.fine_nodes(
+            np.ascontiguousarray(amplitudes), np.ascontiguousarray(time_rate),
+            fitted(start_phi[..., 0]), fitted(length[..., 0]), fitted(begins),
+            np.stack([fitted(k[..., 0]) for k in free]), np.array(omega[:, 0]),
+            np.array(base[:, 0]), first, np.column_stack([stop_t, stop_phase, stop_a]),
+            _EVALUATE_T, _INTEGRATE_C, _FINE_S)
+        return tuple(nodes) + (final,)
+    fine_a = amplitudes @ _EVALUATE.T
+    fine_t = begins[..., None] + (length * (time_rate @ _INTEGRATE.T)) @ _EVALUATE.T
+    fine_phi = start_phi + length * _FINE_S
+    slope, fine_rate, _ = _rates(fine_a, fine_phi, omega[..., None], *free,
+                                 trig=_trig(fine_phi), derivative=False)
+    total = base[..., None] + np.arange(count)[:, None] * math.pi + fine_phi
+    rest = (np.arange(count) >= first[:, None])[..., None]
+    nodes = (np.where(rest, stop_t[:, None, None], fine_t),
+             np.where(rest, stop_phase[:, None, None], total),
+             np.where(rest, stop_a[:, None, None], fine_a),
+             np.where(rest, 0.0, 1.0 / fine_rate), np.where(rest, 0.0, slope / fine_rate))
     return tuple(v.reshape(m, -1) for v in nodes) + (final,)
 
 
@@ -848,19 +833,20 @@ def _reversal(v_of, sense, length):
 
 def _sampled(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     """x at times ``t`` from the nodes, by cubic Hermite interpolation of the total phase
-    and the amplitude in time; past the last node the state stays where it was held."""
+    and the amplitude in time; past the last node the state stays where it was held.
+    (:func:`mcfit.phase_plane_kernels.hermite_changes` is the same interpolant, compiled,
+    with its changes; this path stays free of numba for :func:`phase_plane_motion`.)"""
     x = np.empty((times.shape[0], t.size))
     for i in range(times.shape[0]):
-        _, _, amplitude, phase = _interpolated(t, times[i], phases[i], amplitudes[i],
-                                               phase_rates[i], amplitude_rates[i])
+        amplitude, phase = _interpolated(t, times[i], phases[i], amplitudes[i],
+                                         phase_rates[i], amplitude_rates[i])
         x[i] = amplitude * np.cos(phase)
     return x
 
 
 def _interpolated(t, times, phases, amplitudes, phase_rates, amplitude_rates):
-    """Interval index of each time, the cubic Hermite basis at its position in it (h00,
-    h01, h10, h11 of s in [0, 1]), and the amplitude and total phase there, from the
-    nodes of one set."""
+    """The amplitude and total phase at times ``t`` from the nodes of one set (cubic
+    Hermite basis h00, h01, h10, h11 of s in [0, 1] in each interval)."""
     j = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
     span = times[j + 1] - times[j]
     width = np.where(span > 0, span, 1.0)
@@ -873,5 +859,4 @@ def _interpolated(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     amplitude = (basis[0] * amplitudes[j] + slopes[0] * amplitude_rates[j]
                  + basis[1] * amplitudes[j + 1] + slopes[1] * amplitude_rates[j + 1])
     after = t >= times[-1]
-    return (j, basis, np.where(after, amplitudes[-1], amplitude),
-            np.where(after, phases[-1], phase))
+    return np.where(after, amplitudes[-1], amplitude), np.where(after, phases[-1], phase)
