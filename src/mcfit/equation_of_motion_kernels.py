@@ -14,9 +14,10 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from scipy.integrate._ivp import dop853_coefficients as _dop853
+
+from mcfit.compiled import compiled
 
 __all__ = ["integrate_motion"]
 
@@ -37,23 +38,13 @@ _OUT, _V = 7, 7
 # for each literal integer it is called with.
 
 
-def _compiled(function):
-    """``numba.njit`` with the on-disk cache; without it where numba finds no writable
-    folder (it raises at decoration then). numpy's floating-point errors (x/0 is inf or
-    NaN, which ends the integration) rather than Python's ZeroDivisionError."""
-    try:
-        return numba.njit(cache=True, error_model="numpy")(function)
-    except RuntimeError:
-        return numba.njit(error_model="numpy")(function)
-
-
-@_compiled
+@compiled
 def _restoring(x, omega, pendulum):
     """R(x) = omega**2*x, or omega**2*sin(x)."""
     return omega * omega * (math.sin(x) if pendulum else x)
 
 
-@_compiled
+@compiled
 def _rates(y, K, row, parameters, sense):
     """The right-hand side at the state ``y`` of the motion and its variational equations
     into K[row]; ``sense`` is the sign of the velocity in the half-cycle, which stands for
@@ -79,7 +70,7 @@ def _rates(y, K, row, parameters, sense):
     K[row, 13] -= sense
 
 
-@_compiled
+@compiled
 def _first_step(y, span, rtol, atol, K, work, parameters, sense):
     """scipy's initial step (Hairer, Solving ODEs I, section II.4) for an error of order 7,
     with K[0] = f(y); K[1] is overwritten."""
@@ -105,7 +96,7 @@ def _first_step(y, span, rtol, atol, K, work, parameters, sense):
     return min(100.0 * h0, h1, span)
 
 
-@_compiled
+@compiled
 def _stage(y, K, A, s, h, out):
     """y + h*sum_j A[s, j]*K[j] over the stages j < s into ``out``."""
     for i in range(out.size):
@@ -119,7 +110,7 @@ def _stage(y, K, A, s, h, out):
         out[i] = y[i] + h * out[i]
 
 
-@_compiled
+@compiled
 def _step(y, h, K, A, y_new, work, parameters, sense):
     """One step of order 8 from y with K[0] = f(y): y_new, and K[12] = f(y_new)."""
     for s in range(1, _STAGES + 1):
@@ -128,7 +119,7 @@ def _step(y, h, K, A, y_new, work, parameters, sense):
         _rates(target, K, s, parameters, sense)
 
 
-@_compiled
+@compiled
 def _error_norm(y, y_new, K, h, E3, E5, rtol, atol):
     """scipy's DOP853 error norm: the fifth-order estimate, damped by the third's."""
     err5, err3 = 0.0, 0.0
@@ -145,7 +136,7 @@ def _error_norm(y, y_new, K, h, E3, E5, rtol, atol):
     return abs(h) * err5 / math.sqrt((err5 + 0.01 * err3) * y.size)
 
 
-@_compiled
+@compiled
 def _accepted_step(y, t, h, K, A, E3, E5, y_new, work, rtol, atol, parameters, sense):
     """A step from (t, y) into ``y_new`` under scipy's control, tried first at ``h``: the
     step taken, the step proposed next and the attempts; the step is 0 where it failed
@@ -167,7 +158,7 @@ def _accepted_step(y, t, h, K, A, E3, E5, y_new, work, rtol, atol, parameters, s
     return h, h * (min(1.0, growth) if rejected else growth), attempts
 
 
-@_compiled
+@compiled
 def _dense(y, y_new, h, K, A, D, F, work, parameters, sense):
     """The coefficients F (7, n) of the step's interpolant (three more stages)."""
     for s in range(_STAGES + 1, K.shape[0]):
@@ -185,7 +176,7 @@ def _dense(y, y_new, h, K, A, D, F, work, parameters, sense):
             F[3 + r, i] = h * total
 
 
-@_compiled
+@compiled
 def _polynomial(F, y, fraction, i):
     """Component ``i`` of the step's interpolant at ``fraction`` of the step."""
     value = 0.0
@@ -195,7 +186,7 @@ def _polynomial(F, y, fraction, i):
     return value + y[i]
 
 
-@_compiled
+@compiled
 def _fill(out, tau, filled, stop, F, y, t, h):
     """The output rows of the samples from ``filled`` up to ``stop`` by the step's
     interpolant; the index of the first row not filled."""
@@ -207,7 +198,7 @@ def _fill(out, tau, filled, stop, F, y, t, h):
     return filled
 
 
-@_compiled
+@compiled
 def _reversal(F, y, sense):
     """The fraction of the step where the velocity of ``sense`` vanishes, positive at its
     start and negative at its end: the Illinois method on the interpolant."""
@@ -236,7 +227,7 @@ def _reversal(F, y, sense):
     return 0.5 * (low + high)
 
 
-@_compiled
+@compiled
 def _jump(y, sense, parameters):
     """At a reversal from the half-cycle of ``sense``: the velocity's sensitivities scaled
     by a+/a-, the accelerations after and before (the friction's sign flips at x' = 0)."""
@@ -248,7 +239,7 @@ def _jump(y, sense, parameters):
             y[i] *= after / before
 
 
-@_compiled
+@compiled
 def _hold(out, start, stop, y):
     """The rows from ``start`` to ``stop``: x and dx/dp of ``y``."""
     for row in range(start, stop):
@@ -256,7 +247,7 @@ def _hold(out, start, stop, y):
             out[row, c] = y[c]
 
 
-@_compiled
+@compiled
 def _integrate(tau, parameters, rtol, atol, max_steps, A, E3, E5, D, y, y_new, work, K, F,
                out):
     """Fill ``out`` from the state ``y`` at time 0; the number of rows filled."""

@@ -10,25 +10,16 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
+
+from mcfit.compiled import compiled
 
 __all__ = ["collocation_residuals", "fine_nodes", "hermite_changes"]
 
 _HALF_PI = 0.5 * math.pi
 
 
-def _compiled(function):
-    """``function`` compiled in nopython mode with numpy's float semantics (inf and nan,
-    no ZeroDivisionError), cached where numba finds a writable folder."""
-    options = {"nogil": True, "error_model": "numpy"}
-    try:
-        return numba.njit(cache=True, **options)(function)
-    except RuntimeError:  # "cannot cache function ...: no locator available"
-        return numba.njit(**options)(function)
-
-
-@_compiled
+@compiled
 def _rates(amplitude, cos, sin, omega, a, b, c):
     """dA/dphi, dt/dphi and d(dA/dphi)/dA at one state (:func:`mcfit.phase_plane._rates`,
     the same operations)."""
@@ -43,7 +34,7 @@ def _rates(amplitude, cos, sin, omega, a, b, c):
     return slope, 1.0 / denominator, d_slope / denominator
 
 
-@_compiled
+@compiled
 def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate):
     """The collocation equations A = A_start + L*S*f(A) of every half-cycle of each set
     (A_start the end of the one before, ``y0`` for the first): residuals, and dt/dphi
@@ -95,7 +86,7 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
     return residual, time_rate, d_slope
 
 
-@_compiled
+@compiled
 def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, base,
                first, rest, evaluate, integrate, fine_s):
     """The solved half-cycles of each set on ``fine`` points each, as nodes of the
@@ -170,7 +161,7 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
     return out
 
 
-@_compiled
+@compiled
 def _node_changes(times, values, rates):
     """Per node of set 0 and moved set (rows 1 on): the change of the interpolated
     quantity at the node's fixed time, and its slopes in s at the start and the end of
@@ -198,7 +189,7 @@ def _node_changes(times, values, rates):
     return table
 
 
-@_compiled
+@compiled
 def hermite_changes(t, times, phases, amplitudes, phase_rates, amplitude_rates):
     """x of set 0 at times ``t`` by cubic Hermite interpolation of its total phase and
     amplitude in time between its nodes, and the changes of the moved sets there to
