@@ -281,10 +281,10 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
 
     The others are estimated from the best fitted one (:func:`_estimates`) and fitted
     where the estimate may change the choice (:func:`_may_matter`), again from each new
-    best, until none may: a model that adds terms to the best from its estimate (a small
-    step), any other from its start in ``vectors`` (from an estimate that drops terms, a
-    fit with sliding friction stopped at a kink of the motion, where the swing that stops
-    changes). A fitted model that adds terms to a new best is refitted where it stopped
+    best, until none may: a model that adds terms to the best, or has no sliding
+    friction, from its estimate (a small step; a smooth motion), any other from its start
+    in ``vectors`` (from an estimate that drops terms, a fit with sliding friction stopped
+    at a kink of the motion, where the swing that stops changes). A fitted model that adds terms to a new best is refitted where it stopped
     above its estimate (:func:`_refit_stuck`). Where the best misfits, the largest model is
     fitted from its own start (an estimate far from a misfit may miss a better minimum).
 
@@ -312,8 +312,8 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
             break
         for model, estimate in unfitted.items():
             if _may_matter(estimate, best, n_points):
-                begin = (estimate.internal if set(best.terms) <= set(estimate.terms)
-                         else vectors[model])
+                near = set(best.terms) <= set(estimate.terms) or "c" not in estimate.terms
+                begin = estimate.internal if near else vectors[model]
                 fitted[model] = _ranked(waveforms[model], begin, _RANKING)[0]
     return {m: fitted.get(m) or estimates[m] for m in waveforms}
 
