@@ -17,6 +17,7 @@ import mcfit.equation_of_motion as equation_of_motion
 from mcfit.bench.reference_motion import integrate
 from mcfit.equation_of_motion import PARAMETERS, motion_with_sensitivities
 from mcfit.viscous_motion import viscous_motion_jacobian
+from test_equation_of_motion import _central_differences
 
 OMEGA = 2 * math.pi
 QS = [1.5, 5.0, 20.0, 100.0]
@@ -68,19 +69,6 @@ def test_drag_friction_and_a_large_swing_match_an_independent_dop853_solve(q, mu
         rtol=1e-12)
     assert np.max(np.abs(x - expected)) < 1e-8
     assert np.all(np.isfinite(sensitivities[:, :5]))
-
-
-def _central_differences(t, p, restoring):
-    columns = []
-    for j in range(p.size):
-        step = 1e-6 * max(abs(p[j]), 1.0)
-        up, down = p.copy(), p.copy()
-        up[j] += step
-        down[j] -= step if p[j] > 0 else 0.0  # one-sided where a force would turn negative
-        columns.append((motion_with_sensitivities(t, *up, restoring=restoring, rtol=1e-12)[0]
-                        - motion_with_sensitivities(t, *down, restoring=restoring,
-                                                    rtol=1e-12)[0]) / (up[j] - down[j]))
-    return np.column_stack(columns)
 
 
 @pytest.mark.parametrize("q", [1.5, 100.0])
