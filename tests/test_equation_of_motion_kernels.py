@@ -221,3 +221,36 @@ def test_a_tolerance_of_zero_ends_the_integration_in_nan_not_an_exception():
     x, sensitivities = motion_with_sensitivities(np.linspace(0.0, 2.0, 5), 1.0, 0.0, OMEGA,
                                                  0.1, rtol=0.0)
     assert x[0] == 1.0 and np.all(np.isnan(x[1:])) and np.all(np.isnan(sensitivities[1:]))
+
+
+def test_a_span_shorter_than_a_step_fills_its_last_sample():
+    """The last step ends at the last sample exactly: t + h had rounded one unit below
+    it on this span (a third of a cycle), and the last sample came back NaN."""
+    times = np.array([0.0, 0.07154878711979673, 0.10384364177076476])
+    x, sensitivities = motion_with_sensitivities(
+        times, 1.0, -0.18129172773416047, OMEGA, 0.023888813978811707, 0.0,
+        0.06556315241841992, rtol=7.208507599473106e-08)
+    assert np.all(np.isfinite(x)) and np.all(np.isfinite(sensitivities[:, :4]))
+    dense = motion_with_sensitivities(np.linspace(0.0, times[-1], 50), 1.0,
+                                      -0.18129172773416047, OMEGA, 0.023888813978811707,
+                                      0.0, 0.06556315241841992, rtol=1e-12)[0]
+    assert abs(x[-1] - dense[-1]) < 1e-6
+
+
+@pytest.mark.parametrize("turns", [1, 2, 3])
+def test_a_start_on_a_trough_takes_the_forward_phase_derivative(turns):
+    """theta0 a multiple of pi with friction: sin(theta0) is 1e-16, not 0; the motion
+    starts at rest, and dx/dtheta0 is the forward difference's (the waveform fit steps
+    forward from there), as the closed form's; a velocity of -1e-16 had made it the
+    backward one, 10 % off."""
+    t = np.linspace(0.0, 5.0, 2001)
+    theta0 = turns * math.pi
+    x, sensitivities = motion_with_sensitivities(t, 1.0, theta0, OMEGA, 0.3, 0.0, 2.0,
+                                                 rtol=1e-12)
+    step = 1e-7
+    forward = (motion_with_sensitivities(t, 1.0, theta0 + step, OMEGA, 0.3, 0.0, 2.0,
+                                         rtol=1e-12)[0] - x) / step
+    scale = np.max(np.abs(forward))
+    assert np.max(np.abs(sensitivities[:, 1] - forward)) < 1e-6 * scale
+    closed = viscous_motion_jacobian(t, 1.0, theta0, OMEGA, 0.3, 4.0 / (math.pi * OMEGA))[1]
+    assert np.max(np.abs(sensitivities[:, 1] - closed[1])) < 1e-6 * scale

@@ -286,8 +286,10 @@ def _integrate(tau, parameters, rtol, atol, max_steps, A, E3, E5, D, y, y_new, w
             _jump(y_new, sense, parameters)
             sense, t = -sense, t + fraction * h
         else:
-            filled = _fill(out, tau, filled, t + h, F, y, t, h)
-            t += h
+            # The last step ends at the last sample exactly (t + h may round below it).
+            end = tau[n - 1] if h == tau[n - 1] - t else t + h
+            filled = _fill(out, tau, filled, end, F, y, t, h)
+            t = end
         for i in range(y.size):
             y[i] = y_new[i]
         _rates(y, K, np.int64(0), parameters, sense)

@@ -83,7 +83,7 @@ def hysteretic_motion_jacobian(t, y0, theta0, omega, b, derivatives=True):
     first, g_first = y0 * lift, lift * g_y0 + y0 * g_lift
     phase = nu * t + start
     count = (phase * (1 / math.pi)).astype(np.intp)
-    j = np.arange(int(count[-1]) + 1 if count.size else 1)
+    j = np.arange(int(count.max()) + 1 if count.size else 1)
     sign = -1.0 if turns % 2 else 1.0
     # Per half-cycle j: sign * ratio**j / (omega + k), and (-1)**j.
     scale = (sign / more) * np.exp(j * (math.log(less) - math.log(more)))[count]

@@ -215,13 +215,13 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
 def _retuned(waveform, candidate, solution, vectors, begin, omega):
     """Where the first fit misfits: the fit from the turning-point start ``begin`` at the
     undamped frequency ``omega`` (:func:`undamped_frequency`), kept with ``vectors`` at
-    that frequency where it ends lower; else the fit as it was. (candidate, solution,
+    that frequency where it ends lower by more than _NEGLIGIBLE; else the fit as it was. (candidate, solution,
     vectors)."""
     if abs(omega - begin[2]) <= 1e-3 * begin[2]:
         return candidate, solution, vectors
     again, solved = _fitted_as_reported(waveform, _at_frequency(begin, omega))
-    if again.chi_square >= candidate.chi_square:
-        return candidate, solution, vectors
+    if _statistic(candidate, again, waveform.t.size) <= _NEGLIGIBLE:  # no better, or by
+        return candidate, solution, vectors  # rounding: the starts stay as they were
     return again, solved, {m: _at_frequency(v, omega) for m, v in vectors.items()}
 
 
@@ -460,12 +460,20 @@ def _noise_difference_order(x):
 
 def _bounds(start, terms):
     """Amplitude and terms >= 0; the phase within half a cycle and the frequency within
-    20 % of the turning points' (a wider step would count other cycles)."""
-    lower = np.array([0.0, start[1] - math.pi / 2, 0.8 * start[2], -np.inf, -np.inf]
+    20 % of the turning points' (a wider step would count other cycles); the amplitude
+    below _REACH times its start and the offset within that start of its own (an
+    amplitude of 12 on a record of 1, its swing held by friction and its offset at 11,
+    had mimicked a viscous decay)."""
+    y0 = abs(start[0]) if start[0] else np.inf
+    lower = np.array([0.0, start[1] - math.pi / 2, 0.8 * start[2], start[3] - y0, -np.inf]
                      + [0.0] * len(terms))
-    upper = np.array([np.inf, start[1] + math.pi / 2, 1.25 * start[2], np.inf, np.inf]
-                     + [np.inf] * len(terms))
+    upper = np.array([_REACH * y0, start[1] + math.pi / 2, 1.25 * start[2], start[3] + y0,
+                      np.inf] + [np.inf] * len(terms))
     return lower, upper
+
+
+# The waveform's amplitude stays below this many times its start (the turning points').
+_REACH = 3.0
 
 
 def _typical(start, terms):
