@@ -213,15 +213,15 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
 
 
 def _retuned(waveform, candidate, solution, vectors, begin, omega):
-    """Where the first fit misfits: the fit from the turning-point start ``begin`` at the
-    undamped frequency ``omega`` (:func:`undamped_frequency`), kept with ``vectors`` at
-    that frequency where it ends lower by more than _NEGLIGIBLE; else the fit as it was. (candidate, solution,
-    vectors)."""
+    """Where the first fit misfits: (candidate, solution, vectors) of the fit from the
+    turning-point start ``begin`` at the undamped frequency ``omega``
+    (:func:`undamped_frequency`), with ``vectors`` at that frequency, where it ends lower
+    by a likelihood-ratio statistic above _NEGLIGIBLE; else the fit as it was."""
     if abs(omega - begin[2]) <= 1e-3 * begin[2]:
         return candidate, solution, vectors
     again, solved = _fitted_as_reported(waveform, _at_frequency(begin, omega))
-    if _statistic(candidate, again, waveform.t.size) <= _NEGLIGIBLE:  # no better, or by
-        return candidate, solution, vectors  # rounding: the starts stay as they were
+    if _statistic(candidate, again, waveform.t.size) <= _NEGLIGIBLE:
+        return candidate, solution, vectors  # no better, or by rounding only
     return again, solved, {m: _at_frequency(v, omega) for m, v in vectors.items()}
 
 
@@ -284,9 +284,10 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
     best, until none may: a model that adds terms to the best, or has no sliding
     friction, from its estimate (a small step; a smooth motion), any other from its start
     in ``vectors`` (from an estimate that drops terms, a fit with sliding friction stopped
-    at a kink of the motion, where the swing that stops changes). A fitted model that adds terms to a new best is refitted where it stopped
-    above its estimate (:func:`_refit_stuck`). Where the best misfits, the largest model is
-    fitted from its own start (an estimate far from a misfit may miss a better minimum).
+    at a kink of the motion, where the swing that stops changes). A fitted model that adds
+    terms to a new best is refitted where it stopped above its estimate
+    (:func:`_refit_stuck`). Where the best misfits, the largest model is fitted from its
+    own start (an estimate far from a misfit may miss a better minimum).
 
     With ``bar``, the step stops where neither the best nor any estimate has an AICc below
     it: at once where the model that sets the bar describes the record within its noise
@@ -458,6 +459,10 @@ def _noise_difference_order(x):
                  if step**k <= _NOISE_LEAK * math.sqrt(math.comb(2 * k, k))), most)
 
 
+# The waveform's amplitude stays below this many times its start (the turning points').
+_REACH = 3.0
+
+
 def _bounds(start, terms):
     """Amplitude and terms >= 0; the phase within half a cycle and the frequency within
     20 % of the turning points' (a wider step would count other cycles); the amplitude
@@ -471,9 +476,6 @@ def _bounds(start, terms):
                       np.inf] + [np.inf] * len(terms))
     return lower, upper
 
-
-# The waveform's amplitude stays below this many times its start (the turning points').
-_REACH = 3.0
 
 
 def _typical(start, terms):

@@ -101,11 +101,12 @@ class AmplitudeWaveform:
 
 class HystereticWaveform(AmplitudeWaveform):
     """As :class:`AmplitudeWaveform` for the hysteretic term alone, whose motion and
-    derivatives are closed forms (:func:`mcfit.hysteretic_motion.hysteretic_motion_jacobian`)."""
+    derivatives are closed forms
+    (:func:`mcfit.hysteretic_motion.hysteretic_motion_jacobian`)."""
 
     def _motion_jacobian(self, tau, p, moved):
-        x, by = hysteretic_motion_jacobian(tau, *p[[0, 1, 2, 5]])
-        return x, by  # moved is (y0, theta0, omega, b), by's order
+        # ``moved`` is (y0, theta0, omega, b): the closed form's order.
+        return hysteretic_motion_jacobian(tau, *p[[0, 1, 2, 5]])
 
 
 class VelocityWaveform(AmplitudeWaveform):
