@@ -20,6 +20,8 @@ import math
 
 import numpy as np
 
+from mcfit.viscous_motion import AT_REST
+
 __all__ = ["PARAMETERS", "RESTORING", "motion_with_sensitivities"]
 
 PARAMETERS = ("y0", "theta0", "omega", "beta", "kappa", "mu")
@@ -83,14 +85,10 @@ def motion_with_sensitivities(tau, y0, theta0, omega, beta=0.0, kappa=0.0, mu=0.
     return rows[:, 0], rows[:, 1:]
 
 
-# A starting speed below this share of omega*|x0| is none (mcfit.viscous_motion's rule).
-_AT_REST = 1e-14
-
-
 def _initial_state(y0, theta0, omega):
     """x, v and their derivatives by the parameters at the start."""
     cos, sin = math.cos(theta0), math.sin(theta0)
-    if abs(sin) <= _AT_REST * abs(cos):
+    if abs(sin) <= AT_REST * abs(cos):
         sin = 0.0  # theta0 a multiple of pi (sin is 1e-16 there): at rest, as it is
     state = np.zeros(_STATE)
     state[:3] = y0 * cos, cos, -y0 * sin  # x, dx/dy0, dx/dtheta0

@@ -22,11 +22,11 @@ import math
 
 import numpy as np
 
-__all__ = ["coulomb_force", "viscous_motion", "viscous_motion_jacobian"]
+__all__ = ["AT_REST", "coulomb_force", "viscous_motion", "viscous_motion_jacobian"]
 
 # The parameters of the derivatives, in the order of viscous_motion's arguments.
 _PARAMETERS = ("y0", "theta0", "omega", "beta", "c")
-_AT_REST = 1e-14  # a starting speed below this share of omega*|x0| is none
+AT_REST = 1e-14  # a starting speed below this share of omega*|x0| is none
 
 
 def coulomb_force(c, omega):
@@ -84,7 +84,7 @@ def _motion(tau, y0, theta0, omega, beta, c, derivatives):
               else omega * 1e-6)
     offset = (0.5 * math.pi) * c / omega  # mu / omega**2
     x0, v0 = y0 * theta0.cos(), -(omega * y0 * theta0.sin())
-    if abs(v0.v) <= _AT_REST * omega.v * abs(x0.v):
+    if abs(v0.v) <= AT_REST * omega.v * abs(x0.v):
         # At rest (theta0 a multiple of pi, where sin is 1e-16, not 0): a velocity of
         # either sign would start a half-cycle that ends at once or the wrong way.
         v0 = _Jet(0.0, v0.g)
