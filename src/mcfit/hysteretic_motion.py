@@ -21,6 +21,8 @@ import math
 
 import numpy as np
 
+from mcfit.jets import Jet
+
 __all__ = ["hysteretic_motion", "hysteretic_motion_jacobian"]
 
 # k is held this far below omega (b near 2*omega/pi, Q near pi/4: no swing would cross 0).
@@ -56,46 +58,35 @@ def hysteretic_motion_jacobian(t, y0, theta0, omega, b, derivatives=True):
     derivatives with respect to (y0, theta0, omega, b), shape (4, n) (None unless
     ``derivatives``)."""
     t = np.asarray(t, dtype=float)
-    y0, theta0, omega, b = (float(v) for v in (y0, theta0, omega, b))
-    # Every scalar with its gradient in (y0, theta0, omega, b).
-    g_omega, g_half, g_y0 = np.eye(4)[2], 0.5 * np.eye(4)[1], np.eye(4)[0]
-    k, g_k = 0.5 * math.pi * b, 0.5 * math.pi * np.eye(4)[3]
-    if k > _HELD * omega:
-        k, g_k = _HELD * omega, _HELD * g_omega
+    y0, theta0, omega, b = Jet.variables((y0, theta0, omega, b))
+    k = b * (0.5 * math.pi)
+    if k.v > _HELD * omega.v:
+        k = omega * _HELD
     less, more = omega - k, omega + k
-    nu = math.sqrt(less * more)
-    g_nu = (omega * g_omega - k * g_k) / nu
-    g_log_ratio = (g_omega - g_k) / less - (g_omega + g_k) / more
-    turns = math.floor(theta0 / math.pi)
-    half = 0.5 * (theta0 - math.pi * turns)  # half the phase into the half-cycle
-    # The cosine's phase at t = 0: 2*atan2(p, q).
-    p, q = math.sqrt(more) * math.sin(half), math.sqrt(less) * math.cos(half)
-    g_p = math.sin(half) * (g_omega + g_k) / (2 * math.sqrt(more)) + math.sqrt(more) * \
-        math.cos(half) * g_half
-    g_q = math.cos(half) * (g_omega - g_k) / (2 * math.sqrt(less)) - math.sqrt(less) * \
-        math.sin(half) * g_half
-    start = 2 * math.atan2(p, q)
-    g_start = 2 * (q * g_p - p * g_q) / (p * p + q * q)
-    # The amplitude at the turning point the half-cycle of t = 0 starts from.
-    lift = (omega - k * math.cos(2 * half)) / less
-    g_lift = ((g_omega - g_k * math.cos(2 * half) + 2 * k * math.sin(2 * half) * g_half)
-              - lift * (g_omega - g_k)) / less
-    first, g_first = y0 * lift, lift * g_y0 + y0 * g_lift
-    phase = nu * t + start
+    nu, log_ratio = (less * more).sqrt(), (less / more).log()
+    turns = math.floor(theta0.v / math.pi)
+    half = (theta0 - math.pi * turns) * 0.5  # half the phase into the half-cycle
+    # The cosine's phase at t = 0, and the amplitude at the turning point its half-cycle
+    # starts from.
+    start = Jet.atan2(more.sqrt() * half.sin(), less.sqrt() * half.cos()) * 2
+    first = y0 * (omega - k * (half * 2).cos()) / less
+    phase = nu.v * t + start.v
     count = (phase * (1 / math.pi)).astype(np.intp)
     j = np.arange(int(count.max()) + 1 if count.size else 1)
     sign = -1.0 if turns % 2 else 1.0
     # Per half-cycle j: sign * ratio**j / (omega + k), and (-1)**j.
-    scale = (sign / more) * np.exp(j * (math.log(less) - math.log(more)))[count]
+    scale = (sign / more.v) * np.exp(j * log_ratio.v)[count]
     parity = np.where(j % 2, -1.0, 1.0)[count]
     cos = np.cos(phase)
-    shape = scale * (omega * cos + parity * k)  # x / first
-    x = first * shape
+    shape = scale * (omega.v * cos + parity * k.v)  # x / first
+    x = first.v * shape
     if not derivatives:
         return x, None
-    sin_part = first * scale * omega * np.sin(phase)
-    basis = np.array([shape, x * count, first * scale * cos, sin_part * t, sin_part,
-                      first * scale * parity, x])
-    weights = np.array([g_first, g_log_ratio, g_omega, -g_nu, -g_start, g_k,
-                        -(g_omega + g_k) / more])
+    sin_part = first.v * scale * omega.v * np.sin(phase)
+    # x's partial derivatives in first, the log of the ratio, omega, nu, the start, k and
+    # omega + k, by the chain rule with their gradients.
+    basis = np.array([shape, x * count, first.v * scale * cos, sin_part * t, sin_part,
+                      first.v * scale * parity, x])
+    weights = np.array([first.g, log_ratio.g, omega.g, -nu.g, -start.g, k.g,
+                        -more.g / more.v])
     return x, weights.T @ basis

@@ -12,7 +12,7 @@ c = 2*mu/(pi*w).
 
 :func:`viscous_motion_jacobian` gives the derivatives of x with respect to the five
 parameters in closed form too (piecewise where the mass sticks): every scalar of the
-solution carries its gradient (:class:`_Jet`), and x's partial derivatives with respect to
+solution carries its gradient (:class:`mcfit.jets.Jet`), and x's partial derivatives with respect to
 those scalars are combined with them once per sample.
 """
 
@@ -21,6 +21,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from mcfit.jets import Jet
 
 __all__ = ["AT_REST", "coulomb_force", "viscous_motion", "viscous_motion_jacobian"]
 
@@ -77,8 +79,7 @@ def viscous_motion_jacobian(tau, y0, theta0, omega, beta, c=0.0):
 
 def _motion(tau, y0, theta0, omega, beta, c, derivatives):
     tau = np.asarray(tau, dtype=float)
-    y0, theta0, omega, beta, c = (_Jet.variable(v, i) for i, v in
-                                  enumerate((y0, theta0, omega, beta, c)))
+    y0, theta0, omega, beta, c = Jet.variables((y0, theta0, omega, beta, c))
     squared = omega * omega - beta * beta
     damped = (squared.sqrt() if squared.v > 1e-12 * omega.v * omega.v
               else omega * 1e-6)
@@ -87,15 +88,15 @@ def _motion(tau, y0, theta0, omega, beta, c, derivatives):
     if abs(v0.v) <= AT_REST * omega.v * abs(x0.v):
         # At rest (theta0 a multiple of pi, where sin is 1e-16, not 0): a velocity of
         # either sign would start a half-cycle that ends at once or the wrong way.
-        v0 = _Jet(0.0, v0.g)
+        v0 = Jet(0.0, v0.g)
     if v0.v == 0.0 and abs(x0.v) <= offset.v:
         return np.full(tau.shape, x0.v), _constant(x0, tau, derivatives)
     sense = math.copysign(1.0, v0.v) if v0.v != 0.0 else -math.copysign(1.0, x0.v)
     centre = offset * -sense
     start = x0 - centre
     slope = (v0 + beta * start) / damped
-    first = _Jet.atan2(v0, start * damped + beta * slope)
-    first = _Jet(first.v % math.pi or math.pi, first.g)
+    first = Jet.atan2(v0, start * damped + beta * slope)
+    first = Jet(first.v % math.pi or math.pi, first.g)
     first_end = first / damped
     x = np.empty(tau.shape)
     jacobian = np.empty((len(_PARAMETERS), tau.size)) if derivatives else None
@@ -175,67 +176,3 @@ def _turning_points(x1, offset, ratio, count):
         points[first:] = points[first]
         gradients[:, first:] = gradients[:, first:first + 1]
     return points, gradients
-
-
-class _Jet:
-    """A scalar and its gradient with respect to the five parameters (forward-mode
-    differentiation of the few scalars of the solution)."""
-
-    __slots__ = ("v", "g")
-
-    def __init__(self, value, gradient):
-        self.v, self.g = float(value), gradient
-
-    @classmethod
-    def variable(cls, value, index):
-        gradient = np.zeros(len(_PARAMETERS))
-        gradient[index] = 1.0
-        return cls(value, gradient)
-
-    @staticmethod
-    def _of(other):
-        return other if isinstance(other, _Jet) else _Jet(other, 0.0)
-
-    def __add__(self, other):
-        other = self._of(other)
-        return _Jet(self.v + other.v, self.g + other.g)
-
-    def __sub__(self, other):
-        other = self._of(other)
-        return _Jet(self.v - other.v, self.g - other.g)
-
-    def __neg__(self):
-        return _Jet(-self.v, -self.g)
-
-    def __mul__(self, other):
-        other = self._of(other)
-        return _Jet(self.v * other.v, self.g * other.v + other.g * self.v)
-
-    __rmul__ = __mul__
-
-    def __truediv__(self, other):
-        other = self._of(other)
-        value = self.v / other.v
-        return _Jet(value, (self.g - other.g * value) / other.v)
-
-    def __rtruediv__(self, other):
-        return self._of(other) / self
-
-    def sqrt(self):
-        value = math.sqrt(self.v)
-        return _Jet(value, self.g / (2 * value))
-
-    def exp(self):
-        value = math.exp(self.v)
-        return _Jet(value, self.g * value)
-
-    def cos(self):
-        return _Jet(math.cos(self.v), -math.sin(self.v) * self.g)
-
-    def sin(self):
-        return _Jet(math.sin(self.v), math.cos(self.v) * self.g)
-
-    @staticmethod
-    def atan2(y, x):
-        radius = x.v * x.v + y.v * y.v
-        return _Jet(math.atan2(y.v, x.v), (x.v * y.g - y.v * x.g) / radius)
