@@ -499,3 +499,71 @@ def test_the_undamped_frequency_of_the_crests_of_b_alone_is_omega(q):
     assert waveform.undamped_frequency(turning, crests) == pytest.approx(OMEGA, rel=1e-3)
     if q <= 3:
         assert crests < 0.98 * OMEGA
+
+
+def test_auto_starts_without_a_term_its_predicted_bias_explains():
+    """At Q = 5 with b and a Coulomb tenth the turning-point fit reports a + b + c, a at
+    16 standard errors, and the chain predicts a bias of a of 57: auto starts the waveform
+    fit with b + c. The terms left out are still estimated and fitted where they may
+    matter: the fit from there ends where the fit from a + b + c does."""
+    from mcfit.analysis import auto_start
+    from mcfit.bench.waveform_speed import q_record
+    from mcfit.model_error import averaged_law_bias
+
+    t, x = q_record(5, "bc", 2026)
+    turning = find_turning_points(t, x)
+    fit = fit_turning_points(turning)
+    start = auto_start(fit, averaged_law_bias(t, turning, fit))
+    assert (fit.model, start.model) == ("abc", "bc")
+    ours, theirs = (fit_both_forms(t, x, turning, s)
+                    for s in (start, WaveformStart.of_fit(fit)))
+    assert (ours.model, ours.damping_form) == (theirs.model, theirs.damping_form) == (
+        "bc", "amplitude")
+    for k in "bc":
+        assert abs(ours.values[k] - theirs.values[k]) < 1e-3 * theirs.stderr[k]
+
+
+def test_auto_start_keeps_the_model_the_bias_does_not_explain():
+    """The screen's z is no prediction, an infinite z (no turning points on the
+    noise-free waveform) explains nothing, and a model is never emptied."""
+    from mcfit.analysis import auto_start
+    from mcfit.model_error import ModelError, noise_stderr
+
+    t, x = _sample_record()
+    fit = fit_turning_points(find_turning_points(t, x))
+    terms = fit.selection.terms
+    sizes = {k: fit.values[k] / s for k, s in noise_stderr(fit).items()}
+    every = {k: sizes[k] for k in terms}
+    assert auto_start(fit, ModelError(every, 0.0, 5.0, "screen")).model == fit.model
+    assert auto_start(fit, ModelError(every, 0.0, 5.0, "chain")).model == fit.model
+    inf = {k: math.inf for k in terms}
+    assert auto_start(fit, ModelError(inf, math.inf, 5.0, "chain")).model == fit.model
+    one = {k: sizes[k] if k == terms[0] else 0.0 for k in terms}
+    assert auto_start(fit, ModelError(one, 0.0, 5.0, "chain")).model == "".join(terms[1:])
+
+
+def _sample_record():
+    record = read_record(ROOT / "sample_data" / "fig20_19_all_three.csv")
+    return record.t, record.x
+
+
+def test_a_second_call_at_the_same_point_reuses_the_motion_until_the_steps_change():
+    """lmfit asks for the residuals again at its solution: the motion is not solved
+    twice there, the residuals returned are the caller's to change, and new difference
+    steps (a fit's ``typical``) make a new Jacobian."""
+    t = np.linspace(0.0, 4.0, 2001)
+    x = phase_plane_motion(t, 1.0, 0.0, OMEGA, 0.05, 0.3, 0.02)[0]
+    law = amplitude_waveform(t, x, 0.0, ("a", "b", "c"), 1e-3)
+    p = np.array([1.0, 0.0, OMEGA, 0.0, 0.0, 0.05, 0.3, 0.02])
+    law.typical = waveform._typical(p, law.terms)
+    solved = []
+    original = law._with_jacobian
+    law._with_jacobian = lambda q: solved.append(q) or original(q)
+    first = law.residual(p)
+    first[:] = 7.0
+    again = law.residual(p.copy())
+    assert len(solved) == 1 and np.all(np.abs(again) < 1e-6)
+    assert law.jacobian(p) is law.jacobian(p) and len(solved) == 1
+    law.typical = 10 * law.typical
+    law.residual(p)
+    assert len(solved) == 2

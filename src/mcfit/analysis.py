@@ -17,8 +17,8 @@ from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_turning_points_of_pendul
 from mcfit.options import check_fit_options
 from mcfit.turning import TurningPoints, turning_points_of
 
-__all__ = ["METHODS", "Analysis", "analyse_record", "crop_record", "failed_analysis",
-           "fit_turning_points", "fit_by_method", "with_large_swing_warning"]
+__all__ = ["METHODS", "Analysis", "analyse_record", "auto_start", "crop_record",
+           "failed_analysis", "fit_turning_points", "fit_by_method", "with_large_swing_warning"]
 
 @dataclass(frozen=True)
 class Analysis:
@@ -303,10 +303,33 @@ def _auto_method(record, turning, fit, *, criterion, model):
     said = _predicted_bias(error, fit)
     if error.largest <= LIMIT:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
-    waveform = _waveform_fit(record, turning, fit, criterion, model)
+    waveform = _waveform_fit(record, turning, fit, criterion, model,
+                             start=auto_start(fit, error))
     dof = fit.n_points - 1 - len(fit.selection.terms)
     return _reported_of(fit, waveform, said, "the equation of motion",
                         bool(misfit_warning(fit.reduced_chi_square, dof)))
+
+
+# A term whose value is within this many standard errors of the averaged law's predicted
+# bias of it may be that bias alone.
+_EXPLAINED = 2.0
+
+
+def auto_start(fit, error):
+    """Where auto starts the waveform fit: from the turning-point ``fit``, with its model
+    less the terms the averaged law's predicted bias (``error``, where the chain predicted
+    it) explains; at Q = 5 with b and c, a = 16 standard errors was 57 of bias. The terms
+    left out are still estimated, and fitted where they may matter."""
+    from mcfit.fit.waveform import WaveformStart
+    from mcfit.model_error import noise_stderr
+
+    start = WaveformStart.of_fit(fit)
+    if error.how != "chain":
+        return start
+    stderr = noise_stderr(fit)
+    kept = "".join(k for k in fit.selection.terms if not math.isfinite(error.z[k])
+                   or fit.values[k] / stderr[k] - error.z[k] > _EXPLAINED)
+    return replace(start, model=kept) if kept else start
 
 
 def _reported_of(fit, waveform, said, motion, averaged_misfits):
@@ -366,14 +389,16 @@ METHODS = {"auto": _auto_method, "turning-points": _turning_point_method,
            "waveform": _waveform_method}
 
 
-def _waveform_fit(record, turning, fit, criterion, model):
-    """The waveform fit in the form the record supports, started from the turning-point
-    ``fit``, of the signal without the hum the turning-point search took out."""
+def _waveform_fit(record, turning, fit, criterion, model, start=None):
+    """The waveform fit in the form the record supports, started from ``start`` (the
+    turning-point ``fit``'s by default), of the signal without the hum the turning-point
+    search took out."""
     from mcfit.fit.waveform import WaveformStart
 
     x = _without_steady_line(record.t, record.x, turning.steady_line)
-    waveform = fit_both_forms(record.t, x, turning, WaveformStart.of_fit(fit),
-                              criterion=criterion, forced=model)
+    start = start or WaveformStart.of_fit(fit)
+    waveform = fit_both_forms(record.t, x, turning, start, criterion=criterion,
+                              forced=model)
     if fit.bootstrap is None:
         return waveform
     return replace(waveform, warnings=waveform.warnings + (

@@ -19,7 +19,8 @@ import numpy as np
 from mcfit.hysteretic_motion import hysteretic_motion
 from mcfit.phase_plane import phase_plane_motion
 
-__all__ = ["LIMIT", "SCREEN_CONSTANT", "ModelError", "averaged_law_bias", "pendulum_law_bias"]
+__all__ = ["LIMIT", "SCREEN_CONSTANT", "ModelError", "averaged_law_bias", "noise_stderr",
+           "pendulum_law_bias"]
 
 # The waveform fit is worth its cost where the averaged law's bias exceeds this many
 # standard errors of a coefficient.
@@ -46,16 +47,16 @@ def averaged_law_bias(t, turning, fit) -> ModelError:
     q_min = _smallest_rate_q(fit)
     if not terms or q_min is None or any(not fit.stderr[k] for k in terms):
         return ModelError({}, 0.0, q_min, "screen")
-    noise_stderr = _noise_stderr(fit)
+    stderr = noise_stderr(fit)
     relative = SCREEN_CONSTANT / q_min**2
-    z = {k: relative * fit.values[k] / noise_stderr[k] for k in terms}
+    z = {k: relative * fit.values[k] / stderr[k] for k in terms}
     if max(z.values()) <= LIMIT / 3:
         return ModelError(z, max(z.values()), q_min, "screen")
-    z = _chain_bias(t, turning, fit, noise_stderr)
+    z = _chain_bias(t, turning, fit, stderr)
     return ModelError(z, max(map(abs, z.values()), default=0.0), q_min, "chain")
 
 
-def _noise_stderr(fit):
+def noise_stderr(fit):
     """The standard errors the noise alone gives: a misfit (reduced chi-square above 1,
     by which the reported errors are scaled) must not hide the averaged law's bias, which
     may be its very cause."""

@@ -11,8 +11,9 @@ waveform (issue 28), in one child process with one BLAS thread, CPU time.
 - **The waveform fit by Q:** :func:`mcfit.analysis.fit_both_forms` (both physical forms,
   as auto runs it) on records of 10^4 samples at Q = 2, 3, 5, 8, 10
   (b alone, and b with a Coulomb tenth of the first decay rate), long enough for the
-  amplitude to fall to 1e-3 of y0 (at least 8 cycles), started from the turning-point
-  fit: CPU milliseconds, the best of ``config.waveform_runs`` runs.
+  amplitude to fall to 1e-3 of y0 (at least 8 cycles), started where auto starts it
+  (:func:`mcfit.analysis.auto_start`): CPU milliseconds, the best of
+  ``config.waveform_runs`` runs.
 
 Turning-point cost per cycle is the cycles section's. Nothing here asserts a time; a
 target not met is printed as NOT MET.
@@ -143,8 +144,8 @@ def _cpu(function, *args, **kwargs):
 def main():
     """Child process: measure the spec in ``sys.argv[1]`` (JSON: records, runs, seed) and
     print the rows as JSON."""
-    from mcfit.analysis import analyse_record, fit_both_forms, fit_turning_points
-    from mcfit.fit.waveform import WaveformStart
+    from mcfit.analysis import analyse_record, auto_start, fit_both_forms, fit_turning_points
+    from mcfit.model_error import averaged_law_bias
     from mcfit.turning import find_turning_points
 
     spec = json.loads(sys.argv[1])
@@ -167,7 +168,8 @@ def main():
             if turning is None:  # too few turning points to start from
                 waveform.append((q, mix, None))
                 continue
-            start = WaveformStart.of_fit(fit_turning_points(turning))
+            fit = fit_turning_points(turning)
+            start = auto_start(fit, averaged_law_bias(t, turning, fit))
             best = min(_cpu(fit_both_forms, t, x, turning, start)[0]
                        for _ in range(spec["runs"]))
             waveform.append((q, mix, best))
@@ -216,8 +218,8 @@ def format_waveform_speed(result: WaveformSpeed) -> str:
     refused = sum(r[4] is None or r[5] is None for r in result.mixed)
     if refused:
         lines.append(f"  ({refused} records refused by a method, left out)")
-    lines += ["", "  the waveform fit (both forms, as auto runs it) from the turning-point "
-              "fit, CPU ms, best of "
+    lines += ["", "  the waveform fit (both forms, as auto runs it) from auto's start, "
+              "CPU ms, best of "
               f"{result.config.waveform_runs}:",
               f"  {'Q':>4}" + "".join(f"{mix:>10}" for mix in WAVEFORM_MIXES)]
     for q in WAVEFORM_QS:

@@ -177,7 +177,7 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
     tw, xw, t0, nuisance = _window(t, x, turning, start.omega)
-    noise = sample_noise(xw)
+    noise = sample_noise(xw) if rival is None else rival.law.noise  # the same window
     starts = start.values
     models = (offered if forced is None
               else tuple(m for m in starts if m in offered))

@@ -47,6 +47,15 @@ class AmplitudeWaveform:
         self.names = self.free = ("y0",) + NUISANCE + tuple(terms)
         self.memory = {}  # the last solution of the motion starts the next
 
+    @property
+    def typical(self):
+        """The sizes below which the difference steps stop shrinking (set per fit)."""
+        return self._typical
+
+    @typical.setter
+    def typical(self, value):
+        self._typical, self._kept = value, None  # a kept Jacobian had the old steps
+
     def covariance(self, parameters):
         """Unscaled (J^T J)^-1 (pseudo-inverse)."""
         jacobian = self.jacobian(parameters)
@@ -62,17 +71,23 @@ class AmplitudeWaveform:
 
     def residual(self, parameters):
         """Residuals in noise units; the Jacobian at the same point comes with them (the
-        solver asks for it next at every step it takes) and is kept for :meth:`jacobian`."""
+        solver asks for it next at every step it takes) and is kept for :meth:`jacobian`,
+        and both for a second call at the same point (lmfit's at its solution)."""
         p = np.array(parameters, dtype=float)
-        x, self._kept = self._with_jacobian(p)
-        return (x - self.x) / self.noise
+        kept = self._kept_at(p)
+        if kept is None:
+            x, (_, jacobian) = self._with_jacobian(p)
+            kept = self._kept = (p, jacobian, (x - self.x) / self.noise)
+        return kept[2].copy()
 
     def jacobian(self, parameters):
         p = np.asarray(parameters, dtype=float)
+        kept = self._kept_at(p)
+        return self._with_jacobian(p)[1][1] if kept is None else kept[1]
+
+    def _kept_at(self, p):
         kept = getattr(self, "_kept", None)
-        if kept is not None and np.array_equal(kept[0], p):
-            return kept[1]
-        return self._with_jacobian(p)[1][1]
+        return kept if kept is not None and np.array_equal(kept[0], p) else None
 
     def _with_jacobian(self, p):
         """x at ``p``, and (p, the Jacobian of the residuals) by forward differences of the
