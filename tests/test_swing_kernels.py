@@ -88,6 +88,33 @@ def test_random_decays_swing_as_each_set_alone(q, share, mix, theta0):
     assert np.max(np.abs(changes - changes_each)) <= 1e-12
 
 
+@pytest.mark.parametrize(("a", "b", "c", "amplitude", "sign", "reversals"), [
+    (0.0, 0.95, 0.043, 0.285, 1.0, 4),
+    (0.47, 0.27, 0.002, 0.197, 1.0, 10),
+    (1.0, 0.5, 0.01, 0.1, -1.0, 7),
+    (0.0, 0.6, 0.005, 0.04, 1.0, 6),
+])
+def test_several_reversals_are_each_sets_own_to_rounding(a, b, c, amplitude, sign,
+                                                         reversals):
+    """From a stop at rest with several swings before the mass is held, sets moved by
+    1e-8 (stop time, amplitude, frequency, a, b, c): set 0's x and the others' changes
+    within 1e-12 of the amplitude of each set's own final swings."""
+    t = np.linspace(0.0, 8.0, 1601)
+    base = np.array([3.0025, amplitude, OMEGA, a, b, c])  # between samples
+    sets = base + np.vstack([np.zeros(6), 1e-8 * np.diag(base)[base != 0.0]])
+    final = np.column_stack([sets[:, 0], sets[:, 1], np.full(len(sets), sign)])
+    after = t >= base[0]
+    memory = {}
+    x, changes = phase_plane._neighbour_swings(t[after], final, *sets[:, 3:].T,
+                                               sets[:, 2], memory)
+    each = phase_plane._final_swings(t[after], final, *sets[:, 3:].T, sets[:, 2])
+    assert np.sum(memory["swings"][:, 1] == 0.0) == reversals  # pieces started at rest
+    assert np.max(np.abs(x - each[0])) <= 1e-12 * amplitude
+    expected = np.array([values - each[0] for values in each[1:]])
+    assert np.max(np.abs(changes - expected)) <= 1e-12 * amplitude
+    assert np.min(np.max(np.abs(expected), axis=1)) > 1e-12
+
+
 def test_the_final_swings_load_numba_on_the_jacobians_path_only():
     """phase_plane_motion swings a stop in numpy; the Jacobian's differences load the
     kernels."""
