@@ -77,8 +77,8 @@ def test_the_swings_are_each_sets_own_to_rounding(q, share, mix, pieces):
 
 
 @settings(max_examples=25, deadline=None)
-@given(q=st.floats(2.0, 50.0), share=st.floats(0.05, 0.5), mix=st.sampled_from(["bc", "abc"]),
-       theta0=st.floats(0.0, 2 * math.pi))
+@given(q=st.floats(2.0, 50.0), share=st.floats(0.05, 0.5),
+       mix=st.sampled_from(["bc", "abc"]), theta0=st.floats(0.0, 2 * math.pi))
 def test_random_decays_swing_as_each_set_alone(q, share, mix, theta0):
     """As above at random Q 2-50 and Coulomb shares 0.05-0.5 of the first decay rate."""
     parameters, duration = _parameters(q, share, mix, theta0)

@@ -673,7 +673,8 @@ def _swing_nodes(x0, v0, length, omega, a, b, c):
     phase = omega[:, None] * length[:, None] * _SWING_S
     x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
          + (v0 / omega)[:, None] * np.sin(phase))
-    v = -(x0 - centre)[:, None] * omega[:, None] * np.sin(phase) + v0[:, None] * np.cos(phase)
+    v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
+         + v0[:, None] * np.cos(phase))
     n = _SWING_NODES
     last = math.inf
     for _ in range(_SWING_ITERATIONS):

@@ -3,12 +3,13 @@ last swings after a Coulomb stop of a set and of its small changes (a Jacobian's
 sets), as :func:`mcfit.phase_plane._neighbour_swings` describes them.
 
 Each piece of a half-swing is solved by Chebyshev collocation in time for set 0 (Newton's
-method on 2*nodes equations, x and xdot at the nodes, with a small LU factorisation with
-partial pivoting); the moved sets take one Newton step from it with its factors (the chord
-method), and their reversals one from set 0's. The numpy form of the same pieces, each
-set on its own, is :func:`mcfit.phase_plane._final_swings` (it stays free of numba for
-:func:`mcfit.phase_plane.phase_plane_motion`). Only the waveform fit's evaluation imports
-this module (:mod:`mcfit.compiled`).
+method on 2*nodes equations, x and xdot at the nodes, their Jacobian reduced to the xdot
+unknowns and factored by a small LU with partial pivoting: numba's ``np.linalg.solve``
+costs seconds of compilation); the moved sets take one Newton step from it with its
+factors (the chord method), and their reversals one from set 0's. The numpy form of the
+same pieces, each set on its own, is :func:`mcfit.phase_plane._final_swings` (it stays
+free of numba for :func:`mcfit.phase_plane.phase_plane_motion`). Only the waveform fit's
+evaluation imports this module (:mod:`mcfit.compiled`).
 """
 
 from __future__ import annotations
@@ -25,8 +26,8 @@ __all__ = ["NEIGHBOURS", "DIFFERENT", "ENDLESS", "neighbour_swings"]
 # 0's (reverse, or are held, in another piece); the swings did not stop within MAX_PIECES.
 NEIGHBOURS, DIFFERENT, ENDLESS = 0, 1, 2
 _HALF_PI = 0.5 * math.pi
-_PIECES = (1.0, 0.1)  # half periods: the first piece of a half-swing, the others
-_ITERATIONS = 30  # Newton's method on a piece of set 0
+_PIECES = (1.0, 0.1)  # half periods: a first piece of a half-swing, the others
+_ITERATIONS = 30  # Newton iterations on a piece of set 0 (these three as in phase_plane)
 _MAX_PIECES = 400
 _GRID = 32  # intervals of a piece where a reversal is looked for
 _REVERSAL_ITERATIONS = 60
@@ -81,22 +82,53 @@ def _residual(nodes, x0, v0, length, omega, a, b, c, sense, integrate, out):
 
 
 @compiled
-def _jacobian(nodes, length, omega, a, b, c, sense, integrate, matrix):
-    """The Jacobian of :func:`_residual` in ``nodes`` into ``matrix`` (2*nodes square)."""
+def _jacobian(nodes, length, omega, a, b, c, sense, integrate, reduced, weights):
+    """The Jacobian of :func:`_residual` in ``nodes``, [[I, -L*A], [L*A*D1, I + L*A*D2]]
+    (A: ``integrate``, L: ``length``, D1 and D2 diagonal), reduced to the xdot block's
+    Schur complement I + L*A*(D2 + L*D1*A) into ``reduced``; D1 into ``weights``."""
     n = integrate.shape[0]
     push = sense * (_HALF_PI * omega)
     w2 = omega * omega
-    for j in range(n):
-        x, v = nodes[j], nodes[n + j]
+    inner = np.empty((n, n))  # D2 + L*D1*A
+    for i in range(n):
+        x, v = nodes[i], nodes[n + i]
         amplitude = max(math.sqrt(x * x + v * v / w2), 1e-300)
         slope = push * (b + 2 * a * amplitude) / amplitude
-        along_x, along_v = w2 + slope * x, slope * v / w2
-        for i in range(n):
-            scale = length * integrate[i, j]
-            matrix[i, j] = 1.0 if i == j else 0.0
-            matrix[i, n + j] = -scale
-            matrix[n + i, j] = scale * along_x
-            matrix[n + i, n + j] = (1.0 if i == j else 0.0) + scale * along_v
+        weights[i] = w2 + slope * x
+        for j in range(n):
+            inner[i, j] = length * weights[i] * integrate[i, j]
+        inner[i, i] += slope * v / w2
+    row = np.empty(n)  # a row of L*A*inner, summed apart (the compiler vectorises it)
+    for i in range(n):
+        row[:] = 0.0
+        for k in range(n):
+            scale = length * integrate[i, k]
+            source = inner[k]
+            for j in range(n):
+                row[j] += scale * source[j]
+        reduced[i] = row
+        reduced[i, i] += 1.0
+
+
+@compiled
+def _step(factors, pivots, weights, length, integrate, residual):
+    """``residual`` (of x, then of xdot) replaced by the Newton step, the solution of
+    the Jacobian's system from its reduced ``factors`` (:func:`_jacobian`): the xdot
+    part from the Schur complement, then the x part."""
+    n = integrate.shape[0]
+    rhs = residual[n:].copy()
+    for i in range(n):
+        pushed = 0.0
+        for j in range(n):
+            pushed += integrate[i, j] * (weights[j] * residual[j])
+        rhs[i] -= length * pushed
+    _solve(factors, pivots, rhs)
+    for i in range(n):
+        moved = 0.0
+        for j in range(n):
+            moved += integrate[i, j] * rhs[j]
+        residual[i] += length * moved
+    residual[n:] = rhs
 
 
 @compiled
@@ -150,18 +182,19 @@ def _start(x0, v0, length, omega, a, b, c, sense, s, nodes):
 
 
 @compiled
-def _newton(x0, v0, length, omega, a, b, c, sense, integrate, nodes, factors, pivots):
+def _newton(x0, v0, length, omega, a, b, c, sense, integrate, nodes, factors, pivots,
+            weights):
     """Newton's method on a piece of one set from ``nodes`` (solved in place), until
-    the step is 1e-14 of the state's size or stops falling; ``factors``: the LU factors
-    of the Jacobian of the last step."""
+    the step is 1e-14 of the state's size or stops falling; ``factors``, ``pivots`` and
+    ``weights``: the Jacobian of the last step (:func:`_jacobian`, :func:`_factor`)."""
     size = math.hypot(x0, v0 / omega)
     step = np.empty(nodes.size)
     last = math.inf
     for _ in range(_ITERATIONS):
         _residual(nodes, x0, v0, length, omega, a, b, c, sense, integrate, step)
-        _jacobian(nodes, length, omega, a, b, c, sense, integrate, factors)
+        _jacobian(nodes, length, omega, a, b, c, sense, integrate, factors, weights)
         _factor(factors, pivots)
-        _solve(factors, pivots, step)
+        _step(factors, pivots, weights, length, integrate, step)
         change = 0.0
         for i in range(nodes.size):
             nodes[i] -= step[i]
@@ -175,10 +208,11 @@ def _newton(x0, v0, length, omega, a, b, c, sense, integrate, nodes, factors, pi
 
 @compiled
 def _chord(nodes, position, velocity, length, omega, a, b, c, sense, integrate, factors,
-           pivots):
+           pivots, weights):
     """The moved sets' nodes (rows 1 on) one Newton step from set 0's (row 0) with its
-    Jacobian's ``factors``; False where a step left residuals not of the order of its
-    square, or of the rounding of set 0's values: the step is no derivative."""
+    Jacobian (``factors``, ``pivots``, ``weights``: :func:`_newton`'s); False where a
+    step left residuals not of the order of its square, or of the rounding of set 0's
+    values: the step is no derivative (:func:`mcfit.phase_plane._small`)."""
     n = integrate.shape[0]
     floor = 0.0  # 1e-10 of set 0's largest x, or xdot times the piece's length
     for j in range(n):
@@ -188,7 +222,7 @@ def _chord(nodes, position, velocity, length, omega, a, b, c, sense, integrate, 
     for k in range(1, nodes.shape[0]):
         _residual(nodes[0], position[k], velocity[k], length[k], omega[k], a[k], b[k],
                   c[k], sense[k], integrate, step)
-        _solve(factors, pivots, step)
+        _step(factors, pivots, weights, length[0], integrate, step)
         largest = 0.0
         for i in range(2 * n):
             nodes[k, i] = nodes[0, i] - step[i]
@@ -266,7 +300,10 @@ def _spans(coefficients, sense, length, derivative, grid, spans):
     for k in range(1, m):
         reversing = False
         for g in range(1, grid.shape[0]):
-            if sense[k] * _times(grid[g:g + 1], coefficients[k, n:])[0] <= 0:
+            value = 0.0
+            for j in range(n):
+                value += grid[g, j] * coefficients[k, n + j]
+            if sense[k] * value <= 0:
                 reversing = True
                 break
         if reversing != turns:
@@ -403,7 +440,7 @@ def neighbour_swings(local, offset, start, omega, a, b, c, last, s, integrate, f
     position, velocity, now = start.copy(), np.zeros(m), np.zeros(m)
     sense, length, spans = np.empty(m), np.empty(m), np.empty(m)
     nodes, coefficients = np.empty((m, 2 * n)), np.empty((m, 2 * n))
-    factors, pivots = np.empty((2 * n, 2 * n)), np.empty(2 * n, dtype=np.int64)
+    factors, pivots, weights = np.empty((n, n)), np.empty(n, dtype=np.int64), np.empty(n)
     x, changes = np.empty(local.size), np.empty((m - 1, local.size))
     kept, pieces, done = np.empty((max(last.shape[0], 4), 3 + 2 * n)), 0, 0
     different = (DIFFERENT, np.empty(0), np.empty((m - 1, 0)), kept[:0])
@@ -424,11 +461,11 @@ def neighbour_swings(local, offset, start, omega, a, b, c, last, s, integrate, f
             _start(position[0], velocity[0], length[0], omega[0], a[0], b[0], c[0],
                    sense[0], s, nodes[0])
         _newton(position[0], velocity[0], length[0], omega[0], a[0], b[0], c[0], sense[0],
-                integrate, nodes[0], factors, pivots)
+                integrate, nodes[0], factors, pivots, weights)
         kept = _kept(kept, pieces, state, nodes[0])
         pieces += 1
         if not _chord(nodes, position, velocity, length, omega, a, b, c, sense, integrate,
-                      factors, pivots):
+                      factors, pivots, weights):
             return different
         _fit(nodes, fit, coefficients)
         turns = _spans(coefficients, sense, length, derivative, grid, spans)
