@@ -100,13 +100,13 @@ def _jacobian(nodes, length, omega, a, b, c, sense, integrate, reduced, weights)
         inner[i, i] += slope * v / w2
     row = np.empty(n)  # a row of L*A*inner, summed apart (the compiler vectorises it)
     for i in range(n):
-        row[:] = 0.0
+        _fill(row, 0.0)
         for k in range(n):
             scale = length * integrate[i, k]
             source = inner[k]
             for j in range(n):
                 row[j] += scale * source[j]
-        reduced[i] = row
+        _copy(row, reduced[i])
         reduced[i, i] += 1.0
 
 
@@ -116,7 +116,7 @@ def _step(factors, pivots, weights, length, integrate, residual):
     the Jacobian's system from its reduced ``factors`` (:func:`_jacobian`): the xdot
     part from the Schur complement, then the x part."""
     n = integrate.shape[0]
-    rhs = residual[n:].copy()
+    rhs = residual[n:]  # a view: the xdot part, solved in place
     for i in range(n):
         pushed = 0.0
         for j in range(n):
@@ -128,7 +128,6 @@ def _step(factors, pivots, weights, length, integrate, residual):
         for j in range(n):
             moved += integrate[i, j] * rhs[j]
         residual[i] += length * moved
-    residual[n:] = rhs
 
 
 @compiled
@@ -337,7 +336,7 @@ def _values(local, first, stop, start, length, offset, coefficients, derivative,
         for i in range(count):
             basis[j, i] = basis[j - 1, i] * (2 * at[i]) - basis[j - 2, i]
     rate = _combined(basis[:n - 1], _times(derivative, coefficients[0, :n]))
-    x[first:last] = _combined(basis, coefficients[0, :n])
+    _copy(_combined(basis, coefficients[0, :n]), x[first:last])
     for k in range(1, coefficients.shape[0]):
         change = _combined(basis, coefficients[k, :n] - coefficients[0, :n])
         for i in range(count):
@@ -358,6 +357,20 @@ def _combined(basis, weights):
 
 
 @compiled
+def _copy(source, target):
+    """``target[:] = source``, a loop (a slice assignment compiles its error message)."""
+    for i in range(source.size):
+        target[i] = source[i]
+
+
+@compiled
+def _fill(target, value):
+    """``target[:] = value``, a loop."""
+    for i in range(target.size):
+        target[i] = value
+
+
+@compiled
 def _times(matrix, vector):
     """``matrix @ vector``, a loop (numba's matmul calls BLAS, for sizes too small)."""
     out = np.zeros(matrix.shape[0])
@@ -372,8 +385,8 @@ def _fit(nodes, fit, coefficients):
     """Chebyshev coefficients of x and of xdot of each set from their node values."""
     n = fit.shape[0]
     for k in range(nodes.shape[0]):
-        coefficients[k, :n] = _times(fit, nodes[k, :n])
-        coefficients[k, n:] = _times(fit, nodes[k, n:])
+        _copy(_times(fit, nodes[k, :n]), coefficients[k, :n])
+        _copy(_times(fit, nodes[k, n:]), coefficients[k, n:])
 
 
 @compiled
@@ -392,10 +405,11 @@ def _kept(kept, count, state, nodes):
     """``kept`` with row ``count`` set to ``state`` and ``nodes`` (doubled when full)."""
     if count == kept.shape[0]:
         larger = np.empty((2 * count, kept.shape[1]))
-        larger[:count] = kept
+        for i in range(count):
+            _copy(kept[i], larger[i])
         kept = larger
-    kept[count, :3] = state
-    kept[count, 3:] = nodes
+    _copy(state, kept[count, :3])
+    _copy(nodes, kept[count, 3:])
     return kept
 
 
@@ -442,7 +456,8 @@ def neighbour_swings(local, offset, start, omega, a, b, c, last, s, integrate, f
     nodes, coefficients = np.empty((m, 2 * n)), np.empty((m, 2 * n))
     factors, pivots, weights = np.empty((n, n)), np.empty(n, dtype=np.int64), np.empty(n)
     x, changes = np.empty(local.size), np.empty((m - 1, local.size))
-    kept, pieces, done = np.empty((max(last.shape[0], 4), 3 + 2 * n)), 0, 0
+    kept = np.empty((max(last.shape[0], 4), 3 + 2 * n))
+    pieces, done = np.int64(0), np.int64(0)  # not literal: one compilation of callees
     different = (DIFFERENT, np.empty(0), np.empty((m - 1, 0)), kept[:0])
     for _ in range(_MAX_PIECES):
         kind = _kind(position, velocity, omega, a, b, c, sense)
@@ -454,9 +469,10 @@ def neighbour_swings(local, offset, start, omega, a, b, c, last, s, integrate, f
             length[k] = (_PIECES[0] if velocity[k] == 0.0 else _PIECES[1]) * (
                 math.pi / omega[k])
         state = np.array([position[0], velocity[0] / omega[0], length[0] * omega[0]])
-        if pieces < last.shape[0] and np.max(np.abs(last[pieces, :3] - state)) <= 1e-3 * (
+        if pieces < last.shape[0] and max(abs(last[pieces, 0] - state[0]), abs(
+                last[pieces, 1] - state[1]), abs(last[pieces, 2] - state[2])) <= 1e-3 * (
                 abs(state[0]) + abs(state[1])):
-            nodes[0] = last[pieces, 3:]
+            _copy(last[pieces, 3:], nodes[0])
         else:
             _start(position[0], velocity[0], length[0], omega[0], a[0], b[0], c[0],
                    sense[0], s, nodes[0])
@@ -476,7 +492,7 @@ def neighbour_swings(local, offset, start, omega, a, b, c, last, s, integrate, f
         _evaluated(coefficients, spans, length, turns == 1, position, velocity, now)
     else:
         return (ENDLESS, np.empty(0), np.empty((m - 1, 0)), kept[:0])
-    x[done:] = position[0]
+    _fill(x[done:], position[0])
     for k in range(1, m):
-        changes[k - 1, done:] = position[k] - position[0]
+        _fill(changes[k - 1, done:], position[k] - position[0])
     return NEIGHBOURS, x, changes, kept[:pieces]
