@@ -337,8 +337,11 @@ def _values(local, first, stop, start, length, offset, coefficients, derivative,
             basis[j, i] = basis[j - 1, i] * (2 * at[i]) - basis[j - 2, i]
     rate = _combined(basis[:n - 1], _times(derivative, coefficients[0, :n]))
     _copy(_combined(basis, coefficients[0, :n]), x[first:last])
+    difference = np.empty(n)
     for k in range(1, coefficients.shape[0]):
-        change = _combined(basis, coefficients[k, :n] - coefficients[0, :n])
+        for j in range(n):
+            difference[j] = coefficients[k, j] - coefficients[0, j]
+        change = _combined(basis, difference)
         for i in range(count):
             shift = 2 * (local[first + i] + offset[k] - start[k]) / length[k] - 1
             changes[k - 1, first + i] = change[i] + rate[i] * (shift - at[i])
