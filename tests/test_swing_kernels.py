@@ -115,6 +115,19 @@ def test_several_reversals_are_each_sets_own_to_rounding(a, b, c, amplitude, sig
     assert np.min(np.max(np.abs(expected), axis=1)) > 1e-12
 
 
+@pytest.mark.parametrize(("change", "neighbours"), [(1e-7, True), (1e-4, False)])
+def test_a_set_far_from_set_0_is_no_neighbour(change, neighbours):
+    """b moved by 1e-4: the sets swing and reverse alike, but the chord step of the
+    ninth piece leaves residuals above 1e-3 of the step (it is no derivative), and the
+    sets are swung on their own (None); by 1e-7 they are neighbours."""
+    t = np.linspace(0.0, 8.0, 1601)
+    final = np.array([[3.0, 0.285, 1.0], [3.0, 0.285, 1.0]])
+    swung = phase_plane._neighbour_swings(t[t >= 3.0], final, np.zeros(2),
+                                          np.array([0.95, 0.95 * (1 + change)]),
+                                          np.full(2, 0.043), np.full(2, OMEGA))
+    assert (swung is not None) == neighbours
+
+
 def test_the_final_swings_load_numba_on_the_jacobians_path_only():
     """phase_plane_motion swings a stop in numpy; the Jacobian's differences load the
     kernels."""
