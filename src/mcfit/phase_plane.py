@@ -30,7 +30,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numpy.polynomial import chebyshev
 
 from mcfit import decay
 
@@ -574,6 +573,11 @@ _SWING_GRID = np.polynomial.chebyshev.chebvander(np.linspace(-1.0, 1.0, 33),
 _SWING_PIECES = (1.0, 0.1)  # half periods: the first piece of a half-swing, the others
 _SWING_ITERATIONS = 30
 _MAX_PIECES = 400
+# The compiled final swings' matrices, C-ordered (numba compiles one version per layout),
+# and the pieces of a first call.
+_SWING_KERNEL = tuple(np.ascontiguousarray(v) for v in (
+    _SWING_S, _SWING_INTEGRATE, _SWING_FIT, _SWING_DERIVATIVE, _SWING_GRID))
+_NO_SWINGS = np.empty((0, 3 + 2 * _SWING_NODES))
 
 
 def _final_swings(t, final, a, b, c, omega):
@@ -630,89 +634,21 @@ def _neighbour_swings(t, final, a, b, c, omega, memory=None):
     Newton step from them with set 0's Jacobian, and their reversals one from set 0's.
     Each set's polynomial is evaluated at set 0's position in the piece, plus set 0's
     rate there times the difference of the positions. Set 0's pieces of the last call,
-    kept in ``memory``, start Newton's method where they start nearly alike."""
+    kept in ``memory``, start Newton's method where they start nearly alike. Compiled:
+    :func:`mcfit.swing_kernels.neighbour_swings`."""
+    from mcfit import swing_kernels  # numba: on the waveform fit's path only
+
     memory = {} if memory is None else memory
-    last, kept = memory.get("swings", []), []
-    m, n = final.shape[0], _SWING_NODES
-    now = np.zeros(m)
-    position, velocity = final[:, 2] * final[:, 1], np.zeros(m)
-    end = t[-1] - final[0, 0]
-    pieces = []
-    for _ in range(_MAX_PIECES):
-        size = np.abs(position)
-        spring = omega * omega * size
-        held = (velocity == 0.0) & ((spring <= _HALF_PI * omega * c) | (
-            spring <= _HALF_PI * omega * (c + size * (b + a * size))))
-        sense = np.where(velocity != 0.0, np.sign(velocity), -np.sign(position))
-        if np.any(held != held[0]) or np.any(sense != sense[0]):
-            return None
-        if held[0] or now[0] >= end:
-            break
-        length = np.where(velocity == 0.0, _SWING_PIECES[0], _SWING_PIECES[1]) * (
-            math.pi / omega)
-        state = np.array([position[0], velocity[0] / omega[0], length[0] * omega[0]])
-        near = len(kept) < len(last) and np.max(np.abs(last[len(kept)][0] - state)) <= (
-            1e-3 * (abs(state[0]) + abs(state[1])))
-        _, x, v, jacobian = _swing_nodes(position[:1], velocity[:1], length[:1],
-                                         omega[:1], a[:1], b[:1], c[:1],
-                                         last[len(kept)][1] if near else None)
-        kept.append((state, (x, v)))
-        residual, _ = _swing_equations(np.repeat(x, m - 1, axis=0),
-                                       np.repeat(v, m - 1, axis=0), *(
-                                           k[1:] for k in (position, velocity, length,
-                                                           omega, a, b, c)),
-                                       sense[1:, None], jacobian=False)
-        step = np.linalg.solve(jacobian[0], residual.T).T
-        moved = (x - step[:, :n], v - step[:, n:])
-        residual, _ = _swing_equations(*moved, *(k[1:] for k in (
-            position, velocity, length, omega, a, b, c)), sense[1:, None], jacobian=False)
-        if not _small(residual, step, np.concatenate([x, v * length[0]], axis=1)):
-            return None
-        x = np.vstack([x, moved[0]]) @ _SWING_FIT.T  # Chebyshev coefficients
-        v = np.vstack([v, moved[1]]) @ _SWING_FIT.T
-        span = _reversal(_Interpolant(v[0], length[0]), sense[0], length[0])
-        turns = span < length[0]
-        reversing = np.any(sense[1:, None] * (v[1:] @ _SWING_GRID.T)[:, 1:] <= 0, axis=1)
-        if np.any(reversing != turns):
-            return None
-        spans = length
-        if turns:
-            at = 2 * span / length - 1
-            rate = chebyshev.chebval(at, _SWING_DERIVATIVE @ v.T, tensor=False) * 2 / length
-            spans = span - chebyshev.chebval(at, v.T, tensor=False) / rate
-            spans[0] = span
-        pieces.append((now.copy(), length, x))
-        at = 2 * spans / length - 1
-        position = chebyshev.chebval(at, x.T, tensor=False)
-        velocity = np.zeros(m) if turns else chebyshev.chebval(at, v.T, tensor=False)
-        now = now + spans
-    else:
+    last = memory.get("swings", _NO_SWINGS)
+    status, x, changes, kept = swing_kernels.neighbour_swings(
+        np.ascontiguousarray(t - final[0, 0]), final[0, 0] - final[:, 0],
+        final[:, 2] * final[:, 1], *(np.ascontiguousarray(k, dtype=float)
+                                     for k in (omega, a, b, c)), last, *_SWING_KERNEL)
+    if status == swing_kernels.ENDLESS:
         raise RuntimeError("the final swings did not stop")  # pragma: no cover
-    memory["swings"] = kept
-    return _neighbour_values(t - final[0, 0], final[0, 0] - final[:, 0], pieces, now[0],
-                             position)
-
-
-def _neighbour_values(local, offset, pieces, end, position):
-    """x of set 0 at its times ``local`` since its stop, and the other sets' changes:
-    in each piece (start, length, coefficients of every set) each set's polynomial at
-    set 0's position in it plus set 0's rate times the shift of the position (the sets'
-    stops are ``offset`` before set 0's); from ``end`` on, held at ``position``."""
-    x = np.full(local.size, position[0])
-    changes = np.repeat((position[1:] - position[0])[:, None], local.size, axis=1)
-    ends = [start[0] for start, _, _ in pieces[1:]] + [end]
-    for (start, length, coefficients), stop in zip(pieces, ends):
-        low, high = np.searchsorted(local, [start[0], stop])
-        if high <= low:
-            continue
-        at = 2 * (local[low:high] - start[0]) / length[0] - 1
-        basis = chebyshev.chebvander(at, _SWING_NODES - 1)
-        values = basis @ coefficients.T
-        rate = basis[:, :-1] @ (_SWING_DERIVATIVE @ coefficients[0])
-        shift = 2 * (local[low:high, None] + offset[1:] - start[1:]) / length[1:] - 1
-        x[low:high] = values[:, 0]
-        changes[:, low:high] = (values[:, 1:] - values[:, :1]
-                                + rate[:, None] * (shift - at[:, None])).T
+    if status != swing_kernels.NEIGHBOURS:
+        return None
+    memory["swings"] = kept  # one row a piece
     return x, changes
 
 
@@ -720,29 +656,25 @@ def _swing_piece(x0, v0, length, omega, a, b, c):
     """A piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set: the time
     to the reversal of the velocity within it (``length`` where there is none), and x
     and xdot as functions of the time since its start."""
-    sense, x, v, _ = _swing_nodes(x0, v0, length, omega, a, b, c)
+    sense, x, v = _swing_nodes(x0, v0, length, omega, a, b, c)
     x_of = [_interpolant(x[k], length[k]) for k in range(x0.size)]
     v_of = [_interpolant(v[k], length[k]) for k in range(x0.size)]
     spans = [_reversal(v_of[k], sense[k, 0], length[k]) for k in range(x0.size)]
     return spans, x_of, v_of
 
 
-def _swing_nodes(x0, v0, length, omega, a, b, c, guess=None):
+def _swing_nodes(x0, v0, length, omega, a, b, c):
     """The sense of the velocity (shape (m, 1)), x and xdot at the collocation points of
     a piece of ``length`` of a half-swing from (``x0``, ``v0``) of each set, by Newton's
-    method from ``guess`` (x and xdot at the nodes) or a cosine about the centre of the
-    friction at its start, and the equations' Jacobian at the last step."""
+    method from a cosine about the centre of the friction at its start."""
     sense = np.where(v0 != 0.0, np.sign(v0), -np.sign(x0))[:, None]  # of the velocity
     size = np.hypot(x0, v0 / omega)
-    if guess is not None:
-        x, v = guess
-    else:
-        centre = -sense[:, 0] * _HALF_PI / omega * (c + size * (b + a * size))
-        phase = omega[:, None] * length[:, None] * _SWING_S
-        x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
-             + (v0 / omega)[:, None] * np.sin(phase))
-        v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
-             + v0[:, None] * np.cos(phase))
+    centre = -sense[:, 0] * _HALF_PI / omega * (c + size * (b + a * size))
+    phase = omega[:, None] * length[:, None] * _SWING_S
+    x = (centre[:, None] + (x0 - centre)[:, None] * np.cos(phase)
+         + (v0 / omega)[:, None] * np.sin(phase))
+    v = (-(x0 - centre)[:, None] * omega[:, None] * np.sin(phase)
+         + v0[:, None] * np.cos(phase))
     n = _SWING_NODES
     last = math.inf
     for _ in range(_SWING_ITERATIONS):
@@ -754,13 +686,13 @@ def _swing_nodes(x0, v0, length, omega, a, b, c, guess=None):
         if change <= 1e-14 or change > 0.5 * last:
             break
         last = change
-    return sense, x, v, jacobian
+    return sense, x, v
 
 
-def _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense, jacobian=True):
+def _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense):
     """Residuals (shape (m, 2*_SWING_NODES)) of a piece's collocation equations
     x = x0 + integral of xdot, xdot = xdot0 + integral of the force, and their Jacobian
-    (None unless ``jacobian``)."""
+    (:func:`mcfit.swing_kernels.neighbour_swings` compiles the same)."""
     push = sense * (_HALF_PI * omega)[:, None]
     w2 = (omega * omega)[:, None]
     a3, b3, c3 = a[:, None], b[:, None], c[:, None]
@@ -770,8 +702,6 @@ def _swing_equations(x, v, x0, v0, length, omega, a, b, c, sense, jacobian=True)
     residual = np.concatenate([x - x0[:, None] - span * (v @ _SWING_INTEGRATE.T),
                                v - v0[:, None] - span * (force @ _SWING_INTEGRATE.T)],
                               axis=1)
-    if not jacobian:
-        return residual, None
     n = _SWING_NODES
     slope = push * (b3 + 2 * a3 * amplitude) / amplitude
     scale = span[..., None] * _SWING_INTEGRATE  # integrates node values from 0
