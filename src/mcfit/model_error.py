@@ -79,7 +79,7 @@ def _smallest_rate_q(fit):
 
 def _chain_bias(t, turning, fit, noise_stderr):
     from mcfit.errors import McfitError
-    from mcfit.turning import find_turning_points
+    from mcfit.turning import find_turning_points_of_model
 
     used = np.flatnonzero(turning.used)
     t0 = float(turning.t[used[0]])
@@ -95,7 +95,8 @@ def _chain_bias(t, turning, fit, noise_stderr):
     try:
         # Refined as far as the record's crests were: until their shifts are within the
         # record's sample noise (a noise-free waveform would take every pass).
-        found = find_turning_points(times, x, settle_noise=_positive(turning.noise_sigma))
+        found = find_turning_points_of_model(times, x,
+                                             settle_noise=_positive(turning.noise_sigma))
         again = _fitted_values(found, fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
