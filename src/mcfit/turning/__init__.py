@@ -38,6 +38,8 @@ The stages, one module each: :mod:`.spectrum` (step 1), :mod:`.equilibrium`,
 :mod:`.refine` (steps 2 to 4), :mod:`.windows` (the half-cycle fits), :mod:`.period`,
 :mod:`.crests` (step 5), :mod:`.release`, :mod:`.floor` and :mod:`.checks` (step 6);
 :mod:`.tables` for turning points given directly, and :mod:`.result` for the result.
+:func:`find_turning_points_of_model` searches a model's noise-free waveform (the averaged
+law's bias chain) without the stages only a measured record needs.
 """
 
 from __future__ import annotations
@@ -159,15 +161,15 @@ def find_turning_points_of_model(t, x, *, settle_noise=None, source="model"):
     finds a record's, without the stages that only a measured record needs.
 
     For the averaged law's bias chain (:func:`mcfit.model_error.averaged_law_bias`): the
-    waveform of a record's fitted coefficients, sampled at its times. It has no missing
-    samples, no steady line (hum), no still start and no clipping a message must explain,
-    so the checks of the samples, the steady-line search and the search for a still
-    start are skipped. Every stage that sets the crests is the
-    record's own: the spectrum's coarse period and noise and the coarse equilibrium line
-    (the refinement ends within ``settle_noise``, so where it starts shows in the
-    crests), the refinement with its equilibrium correction, the free decay, the floor,
-    the crest phase and the projections. The same turning points as
-    :func:`find_turning_points` gives that waveform, at a lower cost.
+    waveform of a record's fitted coefficients, sampled at its times, has no missing
+    samples, no steady line (hum) and no still start, so the checks of the samples, the
+    steady-line search, the search for a still start and the gap notes are skipped.
+    Every stage that sets the crests is the record's own: the spectrum's coarse period
+    and noise and the coarse equilibrium line (the refinement ends within
+    ``settle_noise``, so where it starts shows in the crests), the refinement with its
+    equilibrium correction, the free decay, the floor, the crest phase and the
+    projections. On such a waveform, the turning points :func:`find_turning_points`
+    finds, to the last digit.
 
     Parameters
     ----------
