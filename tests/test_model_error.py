@@ -194,3 +194,33 @@ def test_the_model_search_predicts_as_the_records_search_would(mix, q, noise, mo
     for term, z in full.z.items():
         assert abs(cheap.z[term] - z) <= 0.02
     assert (cheap.largest > LIMIT) == (full.largest > LIMIT)
+
+
+def test_the_pendulums_chain_searches_its_swing_as_a_model(monkeypatch):
+    """pendulum_law_bias searches the noise-free swing with find_turning_points_of_model
+    and predicts what the record's own search of it predicts (the same turning points)."""
+    from scipy import integrate
+
+    from mcfit.model_error import pendulum_law_bias
+
+    omega = 2 * math.pi  # released at 1 rad, viscous at Q 31 (small swings), 20 periods
+    t = np.arange(0.0, 20.0, 1 / 40)
+    swing = integrate.solve_ivp(
+        lambda _, s: [s[1], -0.2 * s[1] - omega**2 * math.sin(s[0])], (0.0, t[-1]),
+        [1.0, 0.0], method="DOP853", rtol=1e-10, atol=1e-12, t_eval=t).y[0]
+    theta = swing + 1e-3 * np.random.default_rng(5).standard_normal(t.size)
+    turning = find_turning_points(t, theta)
+    fit = fit_turning_points(turning, pendulum=True, model="b")
+    record_search = mcfit.turning.find_turning_points
+    with monkeypatch.context() as patch:
+        patch.setattr(mcfit.turning, "find_turning_points_of_model",
+                      lambda times, x, settle_noise=None: record_search(
+                          times, x, settle_noise=settle_noise))
+        expected = pendulum_law_bias(t, turning, fit)
+
+    def refused(*args, **kwargs):
+        raise AssertionError("the record's search ran on the model's swing")
+
+    monkeypatch.setattr(mcfit.turning, "find_turning_points", refused)
+    bias = pendulum_law_bias(t, turning, fit)
+    assert 0 < bias < math.inf and bias == expected

@@ -121,7 +121,7 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
     from mcfit.equation_of_motion import motion_with_sensitivities
     from mcfit.errors import McfitError
     from mcfit.fit.pendulum import fit_turning_points_of_pendulum
-    from mcfit.turning import find_turning_points
+    from mcfit.turning import find_turning_points_of_model
 
     used = np.flatnonzero(turning.used)
     t0 = float(turning.t[used[0]])
@@ -133,8 +133,8 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
         times - t0, v["y0"] * s, theta0, omega, v["b"], 0.75 * math.pi * v["a"] / (omega * s),
         0.5 * math.pi * omega * v["c"] * s, restoring="pendulum", rtol=1e-10)
     try:
-        found = find_turning_points(times, turning.equilibrium_at(times) + swing / s,
-                                    settle_noise=_positive(turning.noise_sigma))
+        found = find_turning_points_of_model(times, turning.equilibrium_at(times) + swing / s,
+                                             settle_noise=_positive(turning.noise_sigma))
         again = fit_turning_points_of_pendulum(found, found.used_sigma(), degrees,
                                                model=fit.model)
     except McfitError:
