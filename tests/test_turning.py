@@ -558,15 +558,15 @@ def test_the_floor_of_a_long_record_is_found_as_by_one_partition(monkeypatch, rn
 
 
 def _rfft_lengths(monkeypatch):
-    """The lengths np.fft.rfft is called at, from now on in the test."""
+    """The lengths the spectrum's FFT is called at, from now on in the test."""
     lengths = []
-    rfft = np.fft.rfft
+    rfft = spectrum.rfft
 
     def counted(a, n=None, *args, **kwargs):
         lengths.append(np.shape(a)[-1] if n is None else n)
         return rfft(a, n, *args, **kwargs)
 
-    monkeypatch.setattr(np.fft, "rfft", counted)
+    monkeypatch.setattr(spectrum, "rfft", counted)
     return lengths
 
 
@@ -601,6 +601,14 @@ def test_a_short_spectrum_keeps_its_own_length(monkeypatch, rng):
     lengths = _rfft_lengths(monkeypatch)
     find_turning_points(t, x)
     assert lengths[0] == 10_007
+
+
+@pytest.mark.parametrize("length", [9_873, 10_007, 10_240])
+def test_the_spectrum_fft_gives_numpys_values_to_the_last_bit(length, rng):
+    """scipy's FFT, which the spectrum takes for its speed at lengths with a large prime
+    factor, computes numpy's values exactly: the search's results do not depend on it."""
+    v = rng.normal(size=length)
+    np.testing.assert_array_equal(spectrum.rfft(v), np.fft.rfft(v))
 
 
 def test_the_padded_periodogram_gives_the_period_and_noise_of_the_unpadded(monkeypatch, rng):
@@ -724,3 +732,25 @@ def test_an_adc_record_is_clipped_only_where_it_sits_on_a_rail():
     railed = np.round(np.clip(swing + np.random.default_rng(1).normal(0.0, 0.3, t.size),
                               60, 200))
     assert "clipped" in find_turning_points(t, railed).excluded_reason
+
+
+def test_the_model_search_skips_the_measured_records_stages(monkeypatch):
+    """find_turning_points_of_model reads no steady line and no still start (a noise-free
+    model's waveform has neither) and finds the turning points find_turning_points finds
+    on that waveform, to the last digit."""
+    import mcfit.turning as turning
+
+    t, x = waveform(50, cycles=30, law=(1.0, 0.05, 0.1, 0.01))
+    expected = find_turning_points(t, x, settle_noise=1e-4)
+
+    def skipped(*args, **kwargs):
+        raise AssertionError("a measured record's stage ran")
+
+    for name in ("find_steady_line", "_held_until", "_checked_samples", "_find_gaps"):
+        monkeypatch.setattr(turning, name, skipped)
+    found = turning.find_turning_points_of_model(t, x, settle_noise=1e-4)
+    for column in ("t", "y", "sigma", "sign", "used"):
+        np.testing.assert_array_equal(getattr(found, column), getattr(expected, column))
+    assert found.excluded_reason == expected.excluded_reason
+    assert (found.period, found.equilibrium, found.equilibrium_drift) == (
+        expected.period, expected.equilibrium, expected.equilibrium_drift)

@@ -78,9 +78,9 @@ def _smallest_rate_q(fit):
     return fit.omega / (2.0 * rate) if rate > 0 else math.inf
 
 
-def _chain_bias(t, turning, fit, noise_stderr):
+def _chain_bias(t, turning, fit, stderr):
     from mcfit.errors import McfitError
-    from mcfit.turning import find_turning_points
+    from mcfit.turning import find_turning_points_of_model
 
     used = np.flatnonzero(turning.used)
     t0 = float(turning.t[used[0]])
@@ -96,11 +96,12 @@ def _chain_bias(t, turning, fit, noise_stderr):
     try:
         # Refined as far as the record's crests were: until their shifts are within the
         # record's sample noise (a noise-free waveform would take every pass).
-        found = find_turning_points(times, x, settle_noise=_positive(turning.noise_sigma))
+        found = find_turning_points_of_model(times, x,
+                                             settle_noise=_positive(turning.noise_sigma))
         again = _fitted_values(found, fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
-    return {k: (again[k] - v[k]) / noise_stderr[k] for k in fit.selection.terms}
+    return {k: (again[k] - v[k]) / stderr[k] for k in fit.selection.terms}
 
 
 def _fitted_values(turning, model) -> dict:
@@ -121,7 +122,7 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
     from mcfit.equation_of_motion import motion_with_sensitivities
     from mcfit.errors import McfitError
     from mcfit.fit.pendulum import fit_turning_points_of_pendulum
-    from mcfit.turning import find_turning_points
+    from mcfit.turning import find_turning_points_of_model
 
     used = np.flatnonzero(turning.used)
     t0 = float(turning.t[used[0]])
@@ -133,8 +134,8 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
         times - t0, v["y0"] * s, theta0, omega, v["b"], 0.75 * math.pi * v["a"] / (omega * s),
         0.5 * math.pi * omega * v["c"] * s, restoring="pendulum", rtol=1e-10)
     try:
-        found = find_turning_points(times, turning.equilibrium_at(times) + swing / s,
-                                    settle_noise=_positive(turning.noise_sigma))
+        found = find_turning_points_of_model(times, turning.equilibrium_at(times) + swing / s,
+                                             settle_noise=_positive(turning.noise_sigma))
         again = fit_turning_points_of_pendulum(found, found.used_sigma(), degrees,
                                                model=fit.model)
     except McfitError:
