@@ -1,6 +1,7 @@
-"""The amplitude form's Newton iterations (mcfit.phase_plane's all-at-once solve and the
-moved sets' chord step): the evaluation gives the numbers it gave before its step was
-compiled, stored in tests/data/phase_plane_newton.npz."""
+"""The amplitude form's Newton step compiled (mcfit.phase_plane_kernels.newton_step): the
+evaluation gives the numbers numpy's solve gave, stored in tests/data/phase_plane_newton.npz;
+the step is numpy's solve and multiple-shooting recursion, and the iteration numpy's, on
+random sets."""
 
 from __future__ import annotations
 
@@ -9,6 +10,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 from mcfit import phase_plane
 from mcfit import phase_plane_kernels as kernels
@@ -71,3 +75,113 @@ def test_the_differences_are_those_of_numpys_newton_step(case):
         found = np.vstack([x, changes])[:, samples]
         np.testing.assert_allclose(found, reference[f"values_{case}_{call}"], rtol=0,
                                    atol=1e-12 * p[0])
+
+
+def _numpy_step(residual, d_slope, length):
+    """The Newton step of :func:`kernels.newton_step` by numpy's solve of the stacked
+    Jacobians and :func:`phase_plane._steps`."""
+    jacobian = (np.eye(phase_plane.NODES)
+                - length[..., None, None] * phase_plane._INTEGRATE * d_slope[..., None, :])
+    jacobian = np.broadcast_to(jacobian, residual.shape + (residual.shape[-1],))
+    own = np.linalg.solve(jacobian, -residual[..., None])[..., 0]
+    carried = np.linalg.solve(jacobian, np.ones(residual.shape + (1,)))[..., 0]
+    return phase_plane._steps(own, carried)
+
+
+@settings(max_examples=60, deadline=None)
+@given(sets=st.integers(1, 4), count=st.integers(1, 12), chord=st.booleans(),
+       data=st.data())
+def test_the_compiled_step_is_numpys_solve(sets, count, chord, data):
+    """To rounding (1e-12 of the step), with one Jacobian a set or set 0's for all."""
+    rows = 1 if chord else sets
+    floats = st.floats(-1.0, 1.0)
+    residual = data.draw(hnp.arrays(float, (sets, count, phase_plane.NODES), elements=floats))
+    d_slope = data.draw(hnp.arrays(float, (rows, count, phase_plane.NODES), elements=floats))
+    length = data.draw(hnp.arrays(float, (rows, count), elements=st.floats(0.1, math.pi)))
+    found = kernels.newton_step(residual, d_slope, length, phase_plane._INTEGRATE_C)
+    expected = _numpy_step(residual, d_slope, length)
+    np.testing.assert_allclose(found, expected, rtol=0,
+                               atol=1e-12 * max(np.max(np.abs(expected)), 1e-300))
+
+
+@settings(max_examples=40, deadline=None)
+@given(matrix=hnp.arrays(float, (6, 6), elements=st.integers(-3, 3).map(float)),
+       vector=hnp.arrays(float, 6, elements=st.floats(-1.0, 1.0)))
+def test_the_lu_factors_solve_as_lapack(matrix, vector):
+    """Integer matrices with zeros on the diagonal, which need the row exchanges: the
+    solution to rounding where numpy finds one, a non-finite one where it finds the
+    matrix singular."""
+    factors, pivots = matrix.copy(), np.empty(6, dtype=np.int64)
+    columns = np.column_stack([vector, 2 * vector])
+    with np.errstate(all="ignore"):
+        kernels._factor(factors, pivots)
+        kernels._solve(factors, pivots, columns)
+    found = columns[:, 0]
+    np.testing.assert_array_equal(columns[:, 1], 2 * found)
+    try:
+        expected = np.linalg.solve(matrix, vector)
+    except np.linalg.LinAlgError:
+        assert not np.all(np.isfinite(found))
+        return
+    np.testing.assert_allclose(matrix @ found, vector, rtol=0,
+                               atol=1e-9 * np.max(np.abs(expected), initial=1.0))
+
+
+def _columns(q, shares, theta0):
+    """Columns (1, 1) y0, phase from its multiple of pi, omega, a, b, c."""
+    rate = OMEGA / (2 * q)
+    p = [1.0, theta0 % math.pi, OMEGA] + [rate * shares.get(k, 0.0) for k in "abc"]
+    return [np.array([[v]]) for v in p]
+
+
+MIXES = [{"b": 1.0}, {"a": 0.5, "b": 0.5}, {"a": 0.2, "b": 0.7, "c": 0.1},
+         {"b": 0.8, "c": 0.2}, {"a": 1.0}, {"c": 1.0}]
+
+
+@settings(max_examples=30, deadline=None)
+@given(q=st.floats(2.0, 50.0), mix=st.sampled_from(MIXES), share=st.floats(0.0, 1.0),
+       theta0=st.floats(0.0, math.pi, exclude_max=True), cycles=st.floats(1.0, 12.0))
+def test_the_compiled_iteration_is_numpys(q, mix, share, theta0, cycles):
+    """All half-cycles at once, compiled and in numpy: the same outcome (converged or
+    not), and where converged the same amplitudes, held half-cycles and start times to
+    1e-13 (the tolerance is 1e-14 of the amplitude); the mix's terms weighted by
+    ``share`` and its complement in the order drawn."""
+    weights = {k: (share if i == 0 else 1.0 - share if i == 1 else 1.0) * v
+               for i, (k, v) in enumerate(mix.items())}
+    columns = _columns(q, weights, theta0)
+    t_end = cycles
+    count = int(np.ceil((OMEGA * t_end + theta0) / math.pi)) + 2
+    found, expected = (phase_plane._all_half_cycles(count, t_end, *columns, kernels=k)
+                       for k in (kernels, None))
+    assert type(found) is type(expected)
+    if isinstance(expected, tuple):
+        for name, i in (("amplitudes", 0), ("held", 3), ("finished", 4), ("begins", 5)):
+            np.testing.assert_allclose(found[i], expected[i], rtol=0, atol=1e-13,
+                                       err_msg=name)
+
+
+# A fit's step on a Q = 10 record with a Coulomb stop where the solve at once stalls
+# (tests/test_phase_plane.py): y0, theta0, omega, a, b, c, and the record's end.
+STALLING = (0.8898953888077809, 0.10225069729025771, 6.280018089189695,
+            0.4129543922468894, 0.0, 0.06512139473247815)
+T_END = 7.567746995559638
+
+
+def test_the_compiled_iteration_gives_up_as_numpys():
+    """A solve that stalls near a Coulomb stop, and one whose steps overflow from a
+    start of 1e300: no solution, compiled or not."""
+    columns = [np.array([[v]]) for v in STALLING]
+    start = np.full((1, 18, phase_plane.NODES), 1e300)
+    for guess in (None, start):
+        for compiled in (kernels, None):
+            with np.errstate(all="ignore"):
+                assert phase_plane._all_half_cycles(18, T_END, *columns, guess=guess,
+                                                    kernels=compiled) is None
+
+
+def test_one_compiled_version_of_the_newton_kernels():
+    """The iteration and the chord step call the step with arrays of one layout (another
+    would cost a compilation in every new process)."""
+    t, p, steps = _arguments(*CASES[4])
+    phase_plane.phase_plane_differences(t, p, steps)
+    assert len(kernels.newton_step.signatures) == 1, kernels.newton_step.signatures

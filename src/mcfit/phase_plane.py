@@ -246,8 +246,8 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None, kernels=None):
 
 def _chord(first, y0, phi0, omega, a, b, c, kernels):
     """The half-cycles of every set from one Newton step away from ``first`` (the
-    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian; the
-    equations compiled (``kernels``: :mod:`mcfit.phase_plane_kernels`)."""
+    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian
+    (:func:`mcfit.phase_plane_kernels.newton_step`; ``kernels``: that module)."""
     amplitudes, _, _, held, finished, _, _, _ = first
     count = held.shape[1]
     start_phi, length, phases = _grid(count, phi0)
@@ -255,11 +255,7 @@ def _chord(first, y0, phi0, omega, a, b, c, kernels):
     free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
     fixed = _collocation_arguments(y0, phases, length, omega, free)
     residual, _, d_slope = kernels.collocation_residuals(amplitudes, *fixed)
-    jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
-    both = np.linalg.solve(jacobian, np.concatenate(
-        [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
-    own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
-    step = _steps(own, carried)
+    step = kernels.newton_step(residual, d_slope[:1], fixed[2][:1], _INTEGRATE_C)
     guess = amplitudes + step
     residual, time_rate, _ = kernels.collocation_residuals(guess, *fixed)
     if not _small(residual, step, amplitudes):
@@ -402,7 +398,8 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None, kernels
     (amplitudes, shape (m, count, NODES)). Returns (amplitudes, start phases, lengths,
     held, finished, start times, time rates, coefficients as held sets see them), "short"
     when the half-cycles end before ``t_end``, None without convergence. ``kernels``:
-    :mod:`mcfit.phase_plane_kernels` for the equations compiled."""
+    :mod:`mcfit.phase_plane_kernels` for the equations and the step compiled
+    (:func:`mcfit.phase_plane_kernels.newton_step`)."""
     start_phi, length, phases = _grid(count, phi0)
     index = np.arange(count)
     if guess is None:
@@ -411,19 +408,25 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None, kernels
     omega3 = omega[..., None]
     identity, ones = np.eye(_S.size), np.ones(guess.shape)
     trig = (np.cos(phases), np.sin(phases))
+    if kernels is not None:  # the kernels' arguments that stay the same, C-ordered
+        y0_, length_, omega_ = (np.ascontiguousarray(v) for v in (
+            y0[:, 0], length[..., 0], omega[:, 0]))
+        coefficients = np.stack([a, b, c])  # (3, m, 1)
     held_before, steady = None, 0
     for _ in range(_GLOBAL_ITERATIONS):
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
-        free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
         if kernels is None:
+            free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
             slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
             residual = _residual(guess, y0, length, slope)
+            jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
+            both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
+            step = _steps(both[..., 0], both[..., 1])
         else:
             residual, time_rate, d_slope = kernels.collocation_residuals(
-                guess, *_collocation_arguments(y0, phases, length, omega, free))
-        jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
-        both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
-        step = _steps(both[..., 0], both[..., 1])
+                guess, y0_, phases, length_, omega_, np.where(held, 0.0, coefficients),
+                _INTEGRATE_C)
+            step = kernels.newton_step(residual, d_slope, length_, _INTEGRATE_C)
         guess = guess + step
         begins = _begins(length, time_rate, held)
         relevant = ~held & (begins < t_end)

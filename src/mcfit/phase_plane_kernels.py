@@ -14,7 +14,7 @@ import numpy as np
 
 from mcfit.compiled import compiled
 
-__all__ = ["collocation_residuals", "fine_nodes", "hermite_changes"]
+__all__ = ["collocation_residuals", "fine_nodes", "hermite_changes", "newton_step"]
 
 _HALF_PI = 0.5 * math.pi
 
@@ -47,7 +47,8 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
     y0, omega : ndarray, shape (m,)
         Amplitude at the start (U), angular frequency (rad/s).
     phases : ndarray, shape (m, count, nodes)
-        Collocation phases (rad); after the first half-cycle every set's are alike.
+        Collocation phases (rad); after the first half-cycle the same in every
+        half-cycle of every set (from 0 to pi: :func:`mcfit.phase_plane._grid`).
     length : ndarray, shape (m, count)
         Phase length (rad) of each half-cycle.
     free : ndarray, shape (3, m, count)
@@ -65,17 +66,19 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
     residual = np.empty((m, count, size))
     time_rate = np.empty((m, count, size))
     d_slope = np.empty((m, count, size))
-    cos, sin = np.empty((count, size)), np.empty((count, size))
+    cos, sin = np.empty((2, size)), np.empty((2, size))  # the first half-cycle; the rest
     slope = np.empty(size)
     for k in range(m):
         values = amplitudes[min(k, rows - 1)]
         for h in range(count):
-            if k == 0 or h == 0:
+            row = min(h, 1)
+            if h == 0 or (k == 0 and h == 1):
                 for n in range(size):
-                    cos[h, n], sin[h, n] = math.cos(phases[k, h, n]), math.sin(phases[k, h, n])
+                    cos[row, n] = math.cos(phases[k, h, n])
+                    sin[row, n] = math.sin(phases[k, h, n])
             for n in range(size):
                 slope[n], time_rate[k, h, n], d_slope[k, h, n] = _rates(
-                    values[h, n], cos[h, n], sin[h, n], omega[k], free[0, k, h],
+                    values[h, n], cos[row, n], sin[row, n], omega[k], free[0, k, h],
                     free[1, k, h], free[2, k, h])
             entering = y0[k] if h == 0 else values[h - 1, size - 1]
             for n in range(size):
@@ -84,6 +87,109 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
                     integral += slope[i] * integrate[n, i]
                 residual[k, h, n] = values[h, n] - entering - length[k, h] * integral
     return residual, time_rate, d_slope
+
+
+@compiled
+def _factor(matrix, pivots):
+    """LU factors of a square ``matrix`` in place, with partial pivoting (row ``j``
+    exchanged with ``pivots[j]`` at step ``j``), as LAPACK's getrf; a zero pivot leaves
+    inf or NaN, which the caller's test of finite steps meets."""
+    size = matrix.shape[0]
+    for j in range(size):
+        pivot, largest = j, abs(matrix[j, j])
+        for i in range(j + 1, size):
+            if abs(matrix[i, j]) > largest:
+                pivot, largest = i, abs(matrix[i, j])
+        pivots[j] = pivot
+        if pivot != j:
+            for col in range(size):
+                matrix[j, col], matrix[pivot, col] = matrix[pivot, col], matrix[j, col]
+        inverse = 1.0 / matrix[j, j]
+        for i in range(j + 1, size):
+            matrix[i, j] *= inverse
+            factor = matrix[i, j]
+            for col in range(j + 1, size):
+                matrix[i, col] -= factor * matrix[j, col]
+
+
+@compiled
+def _solve(factors, pivots, columns):
+    """``columns`` (size, k) overwritten with the solutions of the system whose LU
+    factors :func:`_factor` left in ``factors`` and ``pivots``, all at once."""
+    size, k = columns.shape
+    for j in range(size):
+        if pivots[j] != j:
+            for r in range(k):
+                columns[j, r], columns[pivots[j], r] = columns[pivots[j], r], columns[j, r]
+    for i in range(size):
+        for col in range(i):
+            factor = factors[i, col]
+            for r in range(k):
+                columns[i, r] -= factor * columns[col, r]
+    for i in range(size - 1, -1, -1):
+        for col in range(i + 1, size):
+            factor = factors[i, col]
+            for r in range(k):
+                columns[i, r] -= factor * columns[col, r]
+        for r in range(k):
+            columns[i, r] /= factors[i, i]
+
+
+@compiled
+def newton_step(residual, d_slope, length, integrate):
+    """The Newton step of the collocation equations of all half-cycles at once (multiple
+    shooting): each half-cycle's Jacobian I - L*S*diag(f'(A)) solved for its own step
+    (right-hand side -G) and its response to a unit change of its start (right-hand
+    side 1), then the ends' recursion e_k = o_k + r_k*e_(k-1), e_(-1) = 0, and each
+    step its own plus its response times the end before it.
+
+    Parameters
+    ----------
+    residual : ndarray, shape (m, count, nodes)
+        Residuals G of each set's equations (:func:`collocation_residuals`).
+    d_slope : ndarray, shape (m or 1, count, nodes)
+        d(dA/dphi)/dA at the collocation points of the sets whose Jacobians are used;
+        one row: set 0's for every set (the chord method).
+    length : ndarray, shape (m or 1, count)
+        Phase length (rad) of each half-cycle of those sets.
+    integrate : ndarray, shape (nodes, nodes)
+        As for :func:`collocation_residuals`.
+
+    Returns
+    -------
+    ndarray, shape (m, count, nodes)
+        The step of the amplitudes (U).
+    """
+    m, count, size = residual.shape
+    rows = d_slope.shape[0]
+    sets = m if rows == 1 else 1  # the sets each Jacobian serves
+    step = np.empty((m, count, size))
+    carried = np.empty((rows, count, size))
+    jacobian, pivots = np.empty((size, size)), np.empty(size, dtype=np.int64)
+    columns = np.empty((size, sets + 1))  # 1, then each set's -G
+    for j in range(rows):
+        for h in range(count):
+            for n in range(size):
+                for i in range(size):
+                    jacobian[n, i] = ((1.0 if n == i else 0.0)
+                                      - length[j, h] * integrate[n, i] * d_slope[j, h, i])
+                columns[n, 0] = 1.0
+                for r in range(sets):
+                    columns[n, r + 1] = -residual[j + r, h, n]
+            _factor(jacobian, pivots)
+            _solve(jacobian, pivots, columns)
+            for n in range(size):
+                carried[j, h, n] = columns[n, 0]
+                for r in range(sets):
+                    step[j + r, h, n] = columns[n, r + 1]
+    for k in range(m):  # each set's own steps become its steps
+        r = carried[min(k, rows - 1)]
+        end = 0.0
+        for h in range(count):
+            for n in range(size):
+                step[k, h, n] += r[h, n] * end
+            end = step[k, h, size - 1]
+    return step
 
 
 @compiled
@@ -99,7 +205,8 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
     amplitudes, time_rates : ndarray, shape (m, count, nodes)
         Amplitude (U) and dt/dphi (s) at each half-cycle's collocation points.
     start_phi, length, begins : ndarray, shape (m, count)
-        Phase of the start (rad), phase length (rad) and start time (s) of each.
+        Phase of the start (rad), phase length (rad) and start time (s) of each; after
+        the first, every half-cycle runs from 0 to pi (:func:`mcfit.phase_plane._grid`).
     free : ndarray, shape (3, m, count)
         a, b, c as each half-cycle sees them (0 where the set is held).
     omega, base : ndarray, shape (m,)
@@ -124,7 +231,7 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
     out = np.zeros((5, m, count * fine))
     cos, sin = np.empty(fine), np.empty(fine)
     elapsed, fine_a, fine_t = np.empty(size), np.empty(fine), np.empty(fine)
-    trig_of = -1  # the half-cycle whose phases' cos and sin are in ``cos``, ``sin``
+    trig_of = -1  # 0: the first half-cycle's cos and sin in ``cos``, ``sin``; 1: the rest's
     for h in range(count):
         for k in range(m):
             at = h * fine
@@ -133,8 +240,8 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
                 out[1, k, at:at + fine] = rest[k, 1]
                 out[2, k, at:at + fine] = rest[k, 2]
                 continue
-            if h == 0 or trig_of != h:  # after the first, every set's phases are alike
-                trig_of = h
+            if h == 0 or trig_of != 1:  # after the first, every half-cycle's are alike
+                trig_of = min(h, 1)
                 for f in range(fine):
                     phi = start_phi[k, h] + length[k, h] * fine_s[f]
                     cos[f], sin[f] = math.cos(phi), math.sin(phi)
