@@ -105,26 +105,28 @@ def test_the_compiled_step_is_numpys_solve(sets, count, chord, data):
 
 
 @settings(max_examples=40, deadline=None)
-@given(matrix=hnp.arrays(float, (6, 6), elements=st.integers(-3, 3).map(float)),
-       vector=hnp.arrays(float, 6, elements=st.floats(-1.0, 1.0)))
-def test_the_lu_factors_solve_as_lapack(matrix, vector):
-    """Integer matrices with zeros on the diagonal, which need the row exchanges: the
-    solution to rounding where numpy finds one, a non-finite one where it finds the
-    matrix singular."""
-    factors, pivots = matrix.copy(), np.empty(6, dtype=np.int64)
-    columns = np.column_stack([vector, 2 * vector])
+@given(matrices=hnp.arrays(float, (3, 6, 6), elements=st.integers(-3, 3).map(float)),
+       vectors=hnp.arrays(float, (3, 6), elements=st.floats(-1.0, 1.0)))
+def test_the_lu_factors_solve_as_lapack(matrices, vectors):
+    """Integer matrices with zeros on the diagonal, which need the row exchanges, side
+    by side: each solution to rounding where numpy finds one, a non-finite one where it
+    finds the matrix singular; a second right-hand side twice the first, twice the
+    solution."""
+    lu, pivots = np.ascontiguousarray(matrices.transpose(1, 2, 0)), np.empty((6, 3), int)
+    columns = np.ascontiguousarray(np.stack([vectors.T, 2 * vectors.T], axis=1))
     with np.errstate(all="ignore"):
-        kernels._factor(factors, pivots)
-        kernels._solve(factors, pivots, columns)
-    found = columns[:, 0]
-    np.testing.assert_array_equal(columns[:, 1], 2 * found)
-    try:
-        expected = np.linalg.solve(matrix, vector)
-    except np.linalg.LinAlgError:
-        assert not np.all(np.isfinite(found))
-        return
-    np.testing.assert_allclose(matrix @ found, vector, rtol=0,
-                               atol=1e-9 * np.max(np.abs(expected), initial=1.0))
+        kernels._factor(lu, pivots)
+        kernels._solve(lu, pivots, columns)
+    np.testing.assert_array_equal(columns[:, 1], 2 * columns[:, 0])
+    for h, (matrix, vector) in enumerate(zip(matrices, vectors)):
+        found = columns[:, 0, h]
+        try:
+            expected = np.linalg.solve(matrix, vector)
+        except np.linalg.LinAlgError:
+            assert not np.all(np.isfinite(found))
+            continue
+        np.testing.assert_allclose(matrix @ found, vector, rtol=0,
+                                   atol=1e-9 * np.max(np.abs(expected), initial=1.0))
 
 
 def _columns(q, shares, theta0):

@@ -90,49 +90,57 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
 
 
 @compiled
-def _factor(matrix, pivots):
-    """LU factors of a square ``matrix`` in place, with partial pivoting (row ``j``
-    exchanged with ``pivots[j]`` at step ``j``), as LAPACK's getrf; a zero pivot leaves
-    inf or NaN, which the caller's test of finite steps meets."""
-    size = matrix.shape[0]
+def _factor(lu, pivots):
+    """LU factors in place of the matrices ``lu[:, :, h]`` (shape (size, size, count)),
+    every h in step, with partial pivoting as LAPACK's getrf: row ``j`` of matrix h
+    exchanged with row ``pivots[j, h]`` at step ``j``. A zero pivot leaves inf or NaN,
+    which the caller's test of finite steps meets."""
+    size, _, count = lu.shape
+    scale = np.empty(count)
     for j in range(size):
-        pivot, largest = j, abs(matrix[j, j])
+        for h in range(count):
+            pivot, largest = j, abs(lu[j, j, h])
+            for i in range(j + 1, size):
+                if abs(lu[i, j, h]) > largest:
+                    pivot, largest = i, abs(lu[i, j, h])
+            pivots[j, h] = pivot
+            if pivot != j:
+                for col in range(size):
+                    lu[j, col, h], lu[pivot, col, h] = lu[pivot, col, h], lu[j, col, h]
+            scale[h] = 1.0 / lu[j, j, h]
         for i in range(j + 1, size):
-            if abs(matrix[i, j]) > largest:
-                pivot, largest = i, abs(matrix[i, j])
-        pivots[j] = pivot
-        if pivot != j:
-            for col in range(size):
-                matrix[j, col], matrix[pivot, col] = matrix[pivot, col], matrix[j, col]
-        inverse = 1.0 / matrix[j, j]
-        for i in range(j + 1, size):
-            matrix[i, j] *= inverse
-            factor = matrix[i, j]
+            for h in range(count):
+                lu[i, j, h] *= scale[h]
             for col in range(j + 1, size):
-                matrix[i, col] -= factor * matrix[j, col]
+                for h in range(count):
+                    lu[i, col, h] -= lu[i, j, h] * lu[j, col, h]
 
 
 @compiled
-def _solve(factors, pivots, columns):
-    """``columns`` (size, k) overwritten with the solutions of the system whose LU
-    factors :func:`_factor` left in ``factors`` and ``pivots``, all at once."""
-    size, k = columns.shape
+def _solve(lu, pivots, columns):
+    """``columns`` (size, k, count) overwritten with the solutions of the systems whose LU
+    factors :func:`_factor` left in ``lu`` and ``pivots``: k right-hand sides each."""
+    size, k, count = columns.shape
     for j in range(size):
-        if pivots[j] != j:
-            for r in range(k):
-                columns[j, r], columns[pivots[j], r] = columns[pivots[j], r], columns[j, r]
+        for h in range(count):
+            pivot = pivots[j, h]
+            if pivot != j:
+                for r in range(k):
+                    columns[j, r, h], columns[pivot, r, h] = (columns[pivot, r, h],
+                                                              columns[j, r, h])
     for i in range(size):
         for col in range(i):
-            factor = factors[i, col]
             for r in range(k):
-                columns[i, r] -= factor * columns[col, r]
+                for h in range(count):
+                    columns[i, r, h] -= lu[i, col, h] * columns[col, r, h]
     for i in range(size - 1, -1, -1):
         for col in range(i + 1, size):
-            factor = factors[i, col]
             for r in range(k):
-                columns[i, r] -= factor * columns[col, r]
+                for h in range(count):
+                    columns[i, r, h] -= lu[i, col, h] * columns[col, r, h]
         for r in range(k):
-            columns[i, r] /= factors[i, i]
+            for h in range(count):
+                columns[i, r, h] /= lu[i, i, h]
 
 
 @compiled
@@ -141,7 +149,8 @@ def newton_step(residual, d_slope, length, integrate):
     shooting): each half-cycle's Jacobian I - L*S*diag(f'(A)) solved for its own step
     (right-hand side -G) and its response to a unit change of its start (right-hand
     side 1), then the ends' recursion e_k = o_k + r_k*e_(k-1), e_(-1) = 0, and each
-    step its own plus its response times the end before it.
+    step its own plus its response times the end before it. The half-cycles' systems
+    are factored and solved side by side, the half-cycle the innermost loop.
 
     Parameters
     ----------
@@ -165,23 +174,25 @@ def newton_step(residual, d_slope, length, integrate):
     sets = m if rows == 1 else 1  # the sets each Jacobian serves
     step = np.empty((m, count, size))
     carried = np.empty((rows, count, size))
-    jacobian, pivots = np.empty((size, size)), np.empty(size, dtype=np.int64)
-    columns = np.empty((size, sets + 1))  # 1, then each set's -G
+    lu, pivots = np.empty((size, size, count)), np.empty((size, count), dtype=np.int64)
+    columns = np.empty((size, sets + 1, count))  # 1, then each set's -G
     for j in range(rows):
+        for n in range(size):
+            for i in range(size):
+                for h in range(count):
+                    lu[n, i, h] = ((1.0 if n == i else 0.0)
+                                   - length[j, h] * integrate[n, i] * d_slope[j, h, i])
+            columns[n, 0, :] = 1.0
+            for r in range(sets):
+                for h in range(count):
+                    columns[n, r + 1, h] = -residual[j + r, h, n]
+        _factor(lu, pivots)
+        _solve(lu, pivots, columns)
         for h in range(count):
             for n in range(size):
-                for i in range(size):
-                    jacobian[n, i] = ((1.0 if n == i else 0.0)
-                                      - length[j, h] * integrate[n, i] * d_slope[j, h, i])
-                columns[n, 0] = 1.0
+                carried[j, h, n] = columns[n, 0, h]
                 for r in range(sets):
-                    columns[n, r + 1] = -residual[j + r, h, n]
-            _factor(jacobian, pivots)
-            _solve(jacobian, pivots, columns)
-            for n in range(size):
-                carried[j, h, n] = columns[n, 0]
-                for r in range(sets):
-                    step[j + r, h, n] = columns[n, r + 1]
+                    step[j + r, h, n] = columns[n, r + 1, h]
     for k in range(m):  # each set's own steps become its steps
         r = carried[min(k, rows - 1)]
         end = 0.0
