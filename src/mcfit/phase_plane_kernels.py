@@ -14,7 +14,8 @@ import numpy as np
 
 from mcfit.compiled import compiled
 
-__all__ = ["collocation_residuals", "fine_nodes", "hermite_changes", "newton_step"]
+__all__ = ["collocation_residuals", "fine_nodes", "held_coefficients", "hermite_changes",
+           "newton_step", "newton_update"]
 
 _HALF_PI = 0.5 * math.pi
 
@@ -201,6 +202,92 @@ def newton_step(residual, d_slope, length, integrate):
                 step[k, h, n] += r[h, n] * end
             end = step[k, h, size - 1]
     return step
+
+
+@compiled
+def held_coefficients(amplitudes, start_phi, omega, coefficients):
+    """Where each set is held: from the first half-cycle that starts at a turning point
+    from which the swing may not cross 0 (:func:`mcfit.phase_plane._held`, the same
+    operations); and a, b, c as each half-cycle sees them.
+
+    Parameters
+    ----------
+    amplitudes : ndarray, shape (m, count, nodes)
+        Amplitudes (U) at the collocation points.
+    start_phi : ndarray, shape (m, count)
+        Phase of each half-cycle's start (rad).
+    omega : ndarray, shape (m,)
+        Angular frequency (rad/s).
+    coefficients : ndarray, shape (3, m)
+        a, b, c of each set.
+
+    Returns
+    -------
+    held : ndarray of bool, shape (m, count)
+    free : ndarray, shape (3, m, count)
+        a, b, c, 0 where the set is held.
+    """
+    m, count = start_phi.shape
+    held = np.empty((m, count), dtype=np.bool_)
+    free = np.empty((3, m, count))
+    for k in range(m):
+        a, b, c = coefficients[0, k], coefficients[1, k], coefficients[2, k]
+        stuck = False
+        for h in range(count):
+            amplitude = amplitudes[k, h, 0]
+            stuck = stuck or (start_phi[k, h] == 0.0 and omega[k] * amplitude
+                              <= math.pi * (c + amplitude * (b + a * amplitude)))
+            held[k, h] = stuck
+            for i in range(3):
+                free[i, k, h] = 0.0 if stuck else coefficients[i, k]
+    return held, free
+
+
+@compiled
+def newton_update(amplitudes, step, held, time_rate, length, t_end, integrate):
+    """``amplitudes`` moved by ``step`` in place, and the size of the step where it
+    matters: the largest change and amplitude of the half-cycles that are not held and
+    start before ``t_end`` (held ones last no time; :func:`mcfit.phase_plane._begins`).
+
+    Parameters
+    ----------
+    amplitudes, step : ndarray, shape (m, count, nodes)
+        Amplitudes (U) at the collocation points and their Newton step.
+    held : ndarray of bool, shape (m, count)
+    time_rate : ndarray, shape (m, count, nodes)
+        dt/dphi (s) at the collocation points before the step.
+    length : ndarray, shape (m, count)
+        Phase length (rad) of each half-cycle.
+    t_end : float
+        End of the record (s).
+    integrate : ndarray, shape (nodes, nodes)
+        As for :func:`collocation_residuals`.
+
+    Returns
+    -------
+    change, size : float
+        Largest |step| and |amplitude| (U), 0 where no half-cycle counts; NaN where one
+        of them is not finite.
+    """
+    m, count, size = amplitudes.shape
+    change, largest, finite = 0.0, 0.0, True
+    for k in range(m):
+        elapsed = 0.0  # to the end of half-cycle h
+        for h in range(count):
+            duration = 0.0
+            if not held[k, h]:
+                for i in range(size):
+                    duration += time_rate[k, h, i] * integrate[size - 1, i]
+                duration *= length[k, h]
+            elapsed += duration
+            counts = not held[k, h] and elapsed - duration < t_end
+            for n in range(size):
+                amplitudes[k, h, n] += step[k, h, n]
+                if counts:
+                    moved, value = abs(step[k, h, n]), abs(amplitudes[k, h, n])
+                    finite = finite and math.isfinite(moved + value)
+                    change, largest = max(change, moved), max(largest, value)
+    return (change, largest) if finite else (math.nan, math.nan)
 
 
 @compiled
