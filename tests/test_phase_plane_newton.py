@@ -187,3 +187,66 @@ def test_one_compiled_version_of_the_newton_kernels():
     t, p, steps = _arguments(*CASES[4])
     phase_plane.phase_plane_differences(t, p, steps)
     assert len(kernels.newton_step.signatures) == 1, kernels.newton_step.signatures
+
+
+@settings(max_examples=40, deadline=None)
+@given(starts=hnp.arrays(float, (3, 10), elements=st.floats(0.0, 2.0)),
+       first=st.sampled_from([0.0, 0.5]), terms=hnp.arrays(float, (3, 3),
+                                                          elements=st.floats(0.0, 3.0)))
+def test_the_compiled_held_half_cycles_are_numpys(starts, first, terms):
+    """Held from the first stuck turning point on (none inside a first half-cycle that
+    starts off one), and the coefficients 0 there: as :func:`phase_plane._held`."""
+    amplitudes = np.repeat(starts[..., None], phase_plane.NODES, axis=2)
+    start_phi = np.zeros((3, 10))
+    start_phi[:, 0] = first
+    omega = np.array([OMEGA, 2.0, 10.0])
+    held, free = kernels.held_coefficients(amplitudes, start_phi, omega, terms)
+    columns = [v[:, None] for v in (omega, *terms)]
+    expected = phase_plane._held(starts, start_phi, *columns)
+    np.testing.assert_array_equal(held, expected)
+    np.testing.assert_array_equal(free, np.where(expected, 0.0, terms[:, :, None]))
+
+
+@settings(max_examples=40, deadline=None)
+@given(data=st.data(), sets=st.integers(1, 3), count=st.integers(1, 8),
+       t_end=st.floats(0.0, 5.0))
+def test_the_compiled_update_is_numpys(data, sets, count, t_end):
+    """The step applied, and its largest change and amplitude over the half-cycles that
+    are not held and start before ``t_end``, as numpy's iteration takes them; NaN where
+    one of those is not finite."""
+    shape = (sets, count, phase_plane.NODES)
+    values = st.floats(-1.0, 1.0)
+    amplitudes = data.draw(hnp.arrays(float, shape, elements=values))
+    step = data.draw(hnp.arrays(float, shape, elements=st.one_of(values, st.just(np.inf))))
+    held = data.draw(hnp.arrays(bool, (sets, count)))
+    time_rate = data.draw(hnp.arrays(float, shape, elements=st.floats(0.05, 0.5)))
+    length = data.draw(hnp.arrays(float, (sets, count), elements=st.floats(0.1, math.pi)))
+    moved = amplitudes.copy()
+    with np.errstate(invalid="ignore"):
+        change, size = kernels.newton_update(moved, step, held, time_rate, length, t_end,
+                                             phase_plane._INTEGRATE_C)
+    np.testing.assert_array_equal(moved, amplitudes + step)
+    begins = phase_plane._begins(length[..., None], time_rate, held)
+    relevant = ~held & (begins < t_end)
+    expected = [np.max(np.abs(v[relevant]), initial=0.0) for v in (step, moved)]
+    if np.isfinite(sum(expected)):
+        np.testing.assert_allclose([change, size], expected, rtol=1e-15, atol=0)
+    else:
+        assert math.isnan(change) and math.isnan(size)
+
+
+def test_values_that_are_not_finite_come_back_bounded(monkeypatch):
+    """A trial set that brings a swing to a standstill: NaN as 0, inf as 1e300."""
+    t, p, steps = _arguments(*CASES[3])
+    interpolated = kernels.hermite_changes
+
+    def broken(*args):
+        x, changes = interpolated(*args)
+        x[:3] = [np.nan, np.inf, -np.inf]
+        changes[0, 5] = np.nan
+        return x, changes
+
+    monkeypatch.setattr(kernels, "hermite_changes", broken)
+    x, changes = phase_plane.phase_plane_differences(t, p, steps)
+    np.testing.assert_array_equal(x[:3], [0.0, 1e300, -1e300])
+    assert changes[0, 5] == 0.0 and np.all(np.isfinite(changes))
