@@ -254,24 +254,18 @@ def _chord(first, y0, phi0, omega, a, b, c, kernels):
     count = held.shape[1]
     start_phi, length, phases = _grid(count, phi0)
     held = np.broadcast_to(held, (y0.shape[0], count))
-    free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    fixed = _collocation_arguments(y0, phases, length, omega, free)
+    y0_, _, length_, omega_, coefficients = _kernel_arguments(y0, start_phi, length, omega,
+                                                              a, b, c)
+    free = np.where(held, 0.0, coefficients[..., None])
+    fixed = (y0_, phases, length_, omega_, free, _INTEGRATE_C)
     residual, _, d_slope = kernels.collocation_residuals(amplitudes, *fixed)
-    step = kernels.newton_step(residual, d_slope[:1], fixed[2][:1], _INTEGRATE_C)
+    step = kernels.newton_step(residual, d_slope[:1], length_[:1], _INTEGRATE_C)
     guess = amplitudes + step
     residual, time_rate, _ = kernels.collocation_residuals(guess, *fixed)
     if not _small(residual, step, amplitudes):
         return None
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
-            _begins(length, time_rate, held), time_rate, free)
-
-
-def _collocation_arguments(y0, phases, length, omega, free):
-    """The arguments of :func:`mcfit.phase_plane_kernels.collocation_residuals` after the
-    amplitudes, from columns (m, 1) and arrays (m, count, 1) of the numpy functions."""
-    return (np.ascontiguousarray(y0[:, 0]), phases, np.ascontiguousarray(length[..., 0]),
-            np.ascontiguousarray(omega[:, 0]), np.stack([k[..., 0] for k in free]),
-            _INTEGRATE_C)
+            _begins(length, time_rate, held), time_rate, list(free[..., None]))
 
 
 def _small(residual, step, scale):
