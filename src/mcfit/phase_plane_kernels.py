@@ -91,57 +91,45 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
 
 
 @compiled
-def _factor(lu, pivots):
-    """LU factors in place of the matrices ``lu[:, :, h]`` (shape (size, size, count)),
-    every h in step, with partial pivoting as LAPACK's getrf: row ``j`` of matrix h
-    exchanged with row ``pivots[j, h]`` at step ``j``. A zero pivot leaves inf or NaN,
-    which the caller's test of finite steps meets."""
-    size, _, count = lu.shape
+def _solve(matrices, columns):
+    """``columns`` (size, k, count) overwritten with the solutions of the systems
+    ``matrices[:, :, h]`` (size, size, count), every h in step: Gaussian elimination
+    with partial pivoting (LAPACK's getrf and getrs, the same operations), the matrices
+    overwritten. A zero pivot leaves inf or NaN, which the caller's test of finite steps
+    meets."""
+    size, k, count = columns.shape
     scale = np.empty(count)
     for j in range(size):
         for h in range(count):
-            pivot, largest = j, abs(lu[j, j, h])
+            pivot, largest = j, abs(matrices[j, j, h])
             for i in range(j + 1, size):
-                if abs(lu[i, j, h]) > largest:
-                    pivot, largest = i, abs(lu[i, j, h])
-            pivots[j, h] = pivot
+                if abs(matrices[i, j, h]) > largest:
+                    pivot, largest = i, abs(matrices[i, j, h])
             if pivot != j:
                 for col in range(size):
-                    lu[j, col, h], lu[pivot, col, h] = lu[pivot, col, h], lu[j, col, h]
-            scale[h] = 1.0 / lu[j, j, h]
-        for i in range(j + 1, size):
-            for h in range(count):
-                lu[i, j, h] *= scale[h]
-            for col in range(j + 1, size):
-                for h in range(count):
-                    lu[i, col, h] -= lu[i, j, h] * lu[j, col, h]
-
-
-@compiled
-def _solve(lu, pivots, columns):
-    """``columns`` (size, k, count) overwritten with the solutions of the systems whose LU
-    factors :func:`_factor` left in ``lu`` and ``pivots``: k right-hand sides each."""
-    size, k, count = columns.shape
-    for j in range(size):
-        for h in range(count):
-            pivot = pivots[j, h]
-            if pivot != j:
+                    matrices[j, col, h], matrices[pivot, col, h] = (matrices[pivot, col, h],
+                                                                    matrices[j, col, h])
                 for r in range(k):
                     columns[j, r, h], columns[pivot, r, h] = (columns[pivot, r, h],
                                                               columns[j, r, h])
-    for i in range(size):
-        for col in range(i):
+            scale[h] = 1.0 / matrices[j, j, h]
+        for i in range(j + 1, size):
+            for h in range(count):
+                matrices[i, j, h] *= scale[h]
+            for col in range(j + 1, size):
+                for h in range(count):
+                    matrices[i, col, h] -= matrices[i, j, h] * matrices[j, col, h]
             for r in range(k):
                 for h in range(count):
-                    columns[i, r, h] -= lu[i, col, h] * columns[col, r, h]
+                    columns[i, r, h] -= matrices[i, j, h] * columns[j, r, h]
     for i in range(size - 1, -1, -1):
         for col in range(i + 1, size):
             for r in range(k):
                 for h in range(count):
-                    columns[i, r, h] -= lu[i, col, h] * columns[col, r, h]
+                    columns[i, r, h] -= matrices[i, col, h] * columns[col, r, h]
         for r in range(k):
             for h in range(count):
-                columns[i, r, h] /= lu[i, i, h]
+                columns[i, r, h] /= matrices[i, i, h]
 
 
 @compiled
@@ -175,7 +163,7 @@ def newton_step(residual, d_slope, length, integrate):
     sets = m if rows == 1 else 1  # the sets each Jacobian serves
     step = np.empty((m, count, size))
     carried = np.empty((rows, count, size))
-    lu, pivots = np.empty((size, size, count)), np.empty((size, count), dtype=np.int64)
+    lu = np.empty((size, size, count))
     columns = np.empty((size, sets + 1, count))  # 1, then each set's -G
     for j in range(rows):
         for n in range(size):
@@ -187,8 +175,7 @@ def newton_step(residual, d_slope, length, integrate):
             for r in range(sets):
                 for h in range(count):
                     columns[n, r + 1, h] = -residual[j + r, h, n]
-        _factor(lu, pivots)
-        _solve(lu, pivots, columns)
+        _solve(lu, columns)
         for h in range(count):
             for n in range(size):
                 carried[j, h, n] = columns[n, 0, h]
