@@ -112,10 +112,11 @@ def test_the_elimination_solves_as_lapack(matrices, vectors):
     side: each solution to rounding where the matrix is well conditioned (a singular one
     may meet a pivot of 0 or of rounding, here or in LAPACK); a second right-hand side
     twice the first, twice the solution."""
-    lu = np.ascontiguousarray(matrices.transpose(1, 2, 0))
-    columns = np.ascontiguousarray(np.stack([vectors.T, 2 * vectors.T], axis=1))
+    augmented = np.ascontiguousarray(np.concatenate(
+        [matrices, vectors[:, :, None], 2 * vectors[:, :, None]], axis=2).transpose(1, 2, 0))
     with np.errstate(all="ignore"):
-        kernels._solve(lu, columns)
+        kernels._solve(augmented, 6)
+    columns = augmented[:, 6:]
     np.testing.assert_array_equal(columns[:, 1], 2 * columns[:, 0])
     for h, (matrix, vector) in enumerate(zip(matrices, vectors)):
         if np.linalg.cond(matrix) < 1e8:
@@ -127,11 +128,10 @@ def test_the_elimination_solves_as_lapack(matrices, vectors):
 def test_a_zero_pivot_leaves_no_finite_solution():
     """A matrix with a column of zeros: the step is not finite, and the iteration gives
     it up (as numpy's solve raises)."""
-    matrix = np.diag([1.0, 0.0, 2.0])[:, :, None]
-    columns = np.ones((3, 1, 1))
+    augmented = np.column_stack([np.diag([1.0, 0.0, 2.0]), np.ones(3)])[:, :, None]
     with np.errstate(all="ignore"):
-        kernels._solve(matrix, columns)
-    assert not np.any(np.isfinite(columns[1:]))
+        kernels._solve(augmented, 3)
+    assert not np.any(np.isfinite(augmented[1:, 3]))
 
 
 def _columns(q, shares, theta0):

@@ -91,45 +91,39 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
 
 
 @compiled
-def _solve(matrices, columns):
-    """``columns`` (size, k, count) overwritten with the solutions of the systems
-    ``matrices[:, :, h]`` (size, size, count), every h in step: Gaussian elimination
-    with partial pivoting (LAPACK's getrf and getrs, the same operations), the matrices
-    overwritten. A zero pivot leaves inf or NaN, which the caller's test of finite steps
-    meets."""
-    size, k, count = columns.shape
+def _solve(augmented, size):
+    """Each system ``augmented[:, :, h]`` (size, size + k, count: a matrix and k
+    right-hand sides) solved in place, every h in step, the solutions in
+    ``augmented[:, size:, h]``: Gaussian elimination with partial pivoting (LAPACK's
+    getrf and getrs, the same operations). A zero pivot leaves inf or NaN, which the
+    caller's test of finite steps meets."""
+    _, width, count = augmented.shape
     scale = np.empty(count)
     for j in range(size):
         for h in range(count):
-            pivot, largest = j, abs(matrices[j, j, h])
+            pivot, largest = j, abs(augmented[j, j, h])
             for i in range(j + 1, size):
-                if abs(matrices[i, j, h]) > largest:
-                    pivot, largest = i, abs(matrices[i, j, h])
+                if abs(augmented[i, j, h]) > largest:
+                    pivot, largest = i, abs(augmented[i, j, h])
             if pivot != j:
-                for col in range(size):
-                    matrices[j, col, h], matrices[pivot, col, h] = (matrices[pivot, col, h],
-                                                                    matrices[j, col, h])
-                for r in range(k):
-                    columns[j, r, h], columns[pivot, r, h] = (columns[pivot, r, h],
-                                                              columns[j, r, h])
-            scale[h] = 1.0 / matrices[j, j, h]
+                for col in range(width):
+                    augmented[j, col, h], augmented[pivot, col, h] = (
+                        augmented[pivot, col, h], augmented[j, col, h])
+            scale[h] = 1.0 / augmented[j, j, h]
         for i in range(j + 1, size):
             for h in range(count):
-                matrices[i, j, h] *= scale[h]
-            for col in range(j + 1, size):
+                augmented[i, j, h] *= scale[h]
+            for col in range(j + 1, width):
                 for h in range(count):
-                    matrices[i, col, h] -= matrices[i, j, h] * matrices[j, col, h]
-            for r in range(k):
-                for h in range(count):
-                    columns[i, r, h] -= matrices[i, j, h] * columns[j, r, h]
+                    augmented[i, col, h] -= augmented[i, j, h] * augmented[j, col, h]
     for i in range(size - 1, -1, -1):
         for col in range(i + 1, size):
-            for r in range(k):
+            for r in range(size, width):
                 for h in range(count):
-                    columns[i, r, h] -= matrices[i, col, h] * columns[col, r, h]
-        for r in range(k):
+                    augmented[i, r, h] -= augmented[i, col, h] * augmented[col, r, h]
+        for r in range(size, width):
             for h in range(count):
-                columns[i, r, h] /= matrices[i, i, h]
+                augmented[i, r, h] /= augmented[i, i, h]
 
 
 @compiled
@@ -139,7 +133,7 @@ def newton_step(residual, d_slope, length, integrate):
     (right-hand side -G) and its response to a unit change of its start (right-hand
     side 1), then the ends' recursion e_k = o_k + r_k*e_(k-1), e_(-1) = 0, and each
     step its own plus its response times the end before it. The half-cycles' systems
-    are factored and solved side by side, the half-cycle the innermost loop.
+    are solved side by side, the half-cycle the innermost loop (:func:`_solve`).
 
     Parameters
     ----------
@@ -163,24 +157,24 @@ def newton_step(residual, d_slope, length, integrate):
     sets = m if rows == 1 else 1  # the sets each Jacobian serves
     step = np.empty((m, count, size))
     carried = np.empty((rows, count, size))
-    lu = np.empty((size, size, count))
-    columns = np.empty((size, sets + 1, count))  # 1, then each set's -G
+    augmented = np.empty((size, size + 1 + sets, count))  # J, 1, then each set's -G
     for j in range(rows):
         for n in range(size):
             for i in range(size):
                 for h in range(count):
-                    lu[n, i, h] = ((1.0 if n == i else 0.0)
-                                   - length[j, h] * integrate[n, i] * d_slope[j, h, i])
-            columns[n, 0, :] = 1.0
+                    augmented[n, i, h] = ((1.0 if n == i else 0.0)
+                                          - length[j, h] * integrate[n, i] * d_slope[j, h, i])
+            for h in range(count):
+                augmented[n, size, h] = 1.0
             for r in range(sets):
                 for h in range(count):
-                    columns[n, r + 1, h] = -residual[j + r, h, n]
-        _solve(lu, columns)
+                    augmented[n, size + 1 + r, h] = -residual[j + r, h, n]
+        _solve(augmented, size)
         for h in range(count):
             for n in range(size):
-                carried[j, h, n] = columns[n, 0, h]
+                carried[j, h, n] = augmented[n, size, h]
                 for r in range(sets):
-                    step[j + r, h, n] = columns[n, r + 1, h]
+                    step[j + r, h, n] = augmented[n, size + 1 + r, h]
     for k in range(m):  # each set's own steps become its steps
         r = carried[min(k, rows - 1)]
         end = 0.0
