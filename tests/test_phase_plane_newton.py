@@ -1,7 +1,7 @@
-"""The amplitude form's Newton step compiled (mcfit.phase_plane_kernels.newton_step): the
-evaluation gives the numbers numpy's solve gave, stored in tests/data/phase_plane_newton.npz;
-the step is numpy's solve and multiple-shooting recursion, and the iteration numpy's, on
-random sets."""
+"""The amplitude form's Newton iterations compiled (mcfit.phase_plane_kernels: newton_step,
+held_coefficients, newton_update): an evaluation gives the numbers numpy's step gave,
+stored in tests/data/phase_plane_newton.npz; the step is numpy's solve and
+multiple-shooting recursion, the bookkeeping and the iteration numpy's, on random sets."""
 
 from __future__ import annotations
 
