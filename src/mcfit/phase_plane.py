@@ -209,8 +209,10 @@ def phase_plane_differences(t, parameters, steps, memory=None):
                 [np.zeros((1, int(np.sum(late)))), changes[:, late]]), final, (a, b, c),
                 omega[:, 0])
             x[late], changes[:, late] = moved[0], moved[1:] - moved[0]
-    return (np.nan_to_num(x, copy=False, nan=0.0, posinf=1e300, neginf=-1e300),
-            np.nan_to_num(changes, copy=False, nan=0.0, posinf=1e300, neginf=-1e300))
+    if not (np.isfinite(x).all() and np.isfinite(changes).all()):  # one pass where finite
+        x, changes = (np.nan_to_num(v, copy=False, nan=0.0, posinf=1e300, neginf=-1e300)
+                      for v in (x, changes))
+    return x, changes
 
 
 def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None, kernels=None):
@@ -245,34 +247,24 @@ def _first_solution(t_end, y0, phi, omega, a, b, c, memory=None, kernels=None):
 
 def _chord(first, y0, phi0, omega, a, b, c, kernels):
     """The half-cycles of every set from one Newton step away from ``first`` (the
-    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian; the
-    equations compiled (``kernels``: :mod:`mcfit.phase_plane_kernels`)."""
+    solution of set 0, as :func:`_all_half_cycles` returns it) with its Jacobian
+    (:func:`mcfit.phase_plane_kernels.newton_step`; ``kernels``: that module)."""
     amplitudes, _, _, held, finished, _, _, _ = first
     count = held.shape[1]
     start_phi, length, phases = _grid(count, phi0)
     held = np.broadcast_to(held, (y0.shape[0], count))
-    free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    fixed = _collocation_arguments(y0, phases, length, omega, free)
+    y0_, _, length_, omega_, coefficients = _kernel_arguments(y0, start_phi, length, omega,
+                                                              a, b, c)
+    free = np.where(held, 0.0, coefficients[..., None])
+    fixed = (y0_, phases, length_, omega_, free, _INTEGRATE_C)
     residual, _, d_slope = kernels.collocation_residuals(amplitudes, *fixed)
-    jacobian = np.eye(_S.size) - length[0, :, :, None] * _INTEGRATE * d_slope[0, :, None, :]
-    both = np.linalg.solve(jacobian, np.concatenate(
-        [-residual.transpose(1, 2, 0), np.ones((count, _S.size, 1))], axis=2))
-    own, carried = both[..., :-1].transpose(2, 0, 1), both[None, ..., -1]
-    step = _steps(own, carried)
+    step = kernels.newton_step(residual, d_slope[:1], length_[:1], _INTEGRATE_C)
     guess = amplitudes + step
     residual, time_rate, _ = kernels.collocation_residuals(guess, *fixed)
     if not _small(residual, step, amplitudes):
         return None
     return (guess, start_phi, length, held, np.broadcast_to(finished, held.shape),
-            _begins(length, time_rate, held), time_rate, free)
-
-
-def _collocation_arguments(y0, phases, length, omega, free):
-    """The arguments of :func:`mcfit.phase_plane_kernels.collocation_residuals` after the
-    amplitudes, from columns (m, 1) and arrays (m, count, 1) of the numpy functions."""
-    return (np.ascontiguousarray(y0[:, 0]), phases, np.ascontiguousarray(length[..., 0]),
-            np.ascontiguousarray(omega[:, 0]), np.stack([k[..., 0] for k in free]),
-            _INTEGRATE_C)
+            _begins(length, time_rate, held), time_rate, list(free[..., None]))
 
 
 def _small(residual, step, scale):
@@ -401,53 +393,104 @@ def _all_half_cycles(count, t_end, y0, phi0, omega, a, b, c, guess=None, kernels
     (amplitudes, shape (m, count, NODES)). Returns (amplitudes, start phases, lengths,
     held, finished, start times, time rates, coefficients as held sets see them), "short"
     when the half-cycles end before ``t_end``, None without convergence. ``kernels``:
-    :mod:`mcfit.phase_plane_kernels` for the equations compiled."""
+    :mod:`mcfit.phase_plane_kernels` for the iteration compiled (:func:`_compiled_step`)."""
     start_phi, length, phases = _grid(count, phi0)
     index = np.arange(count)
     if guess is None:
         elapsed = np.where(index == 0, 0.0, index * math.pi - phi0) / omega
         guess = np.repeat(decay.amplitude(elapsed, y0, a, b, c)[..., None], _S.size, axis=2)
-    omega3 = omega[..., None]
-    identity, ones = np.eye(_S.size), np.ones(guess.shape)
-    trig = (np.cos(phases), np.sin(phases))
-    held_before, steady = None, 0
-    for _ in range(_GLOBAL_ITERATIONS):
+    guess = np.array(guess, dtype=float, order="C")  # stepped in place
+    if kernels is None:
+        trig = (np.cos(phases), np.sin(phases))
+        step = _numpy_step(t_end, y0, start_phi, length, phases, trig, omega, a, b, c)
+    else:
+        arguments = _kernel_arguments(y0, start_phi, length, omega, a, b, c)
+        step = _compiled_step(t_end, phases, arguments, kernels)
+    if _iterated(guess, step) is None:
+        return None
+    if kernels is None:
         held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
         free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-        if kernels is None:
-            slope, time_rate, d_slope = _rates(guess, phases, omega3, *free, trig=trig)
-            residual = _residual(guess, y0, length, slope)
-        else:
-            residual, time_rate, d_slope = kernels.collocation_residuals(
-                guess, *_collocation_arguments(y0, phases, length, omega, free))
-        jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
-        both = np.linalg.solve(jacobian, np.stack([-residual, ones], axis=-1))
-        step = _steps(both[..., 0], both[..., 1])
-        guess = guess + step
-        begins = _begins(length, time_rate, held)
-        relevant = ~held & (begins < t_end)
-        size = np.max(np.abs(guess[relevant]), initial=0.0)
-        change = np.max(np.abs(step[relevant]), initial=0.0)
-        if not np.isfinite(change + size):
-            return None
-        same = held_before is not None and np.array_equal(held, held_before)
-        if change <= 1e-14 * size and same:
-            break
-        steady = steady + 1 if same else 0
-        if steady >= _STALLED:
-            return None
-        held_before = held
+        _, time_rate, _ = _rates(guess, phases, omega[..., None], *free, trig=trig,
+                                 derivative=False)
     else:
-        return None
-    held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
-    free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
-    _, time_rate, _ = _rates(guess, phases, omega3, *free, trig=trig, derivative=False)
+        y0_, start_, length_, omega_, coefficients = arguments
+        held, free = kernels.held_coefficients(guess, start_, omega_, coefficients)
+        _, time_rate, _ = kernels.collocation_residuals(guess, y0_, phases, length_, omega_,
+                                                        free, _INTEGRATE_C)
+        free = list(free[..., None])
     begins = _begins(length, time_rate, held)
     finished = held | (begins >= t_end)
     if not np.all(np.any(finished, axis=1) | (begins[:, -1] + length[:, -1, 0] * (
             time_rate[:, -1] @ _INTEGRATE[-1]) >= t_end)):
         return "short"
     return guess, start_phi, length, held, finished, begins, time_rate, free
+
+
+def _iterated(guess, step):
+    """Newton's method from ``guess`` (updated in place) by ``step``: the amplitudes, or
+    None where a step is not finite, the held half-cycles keep changing, or it stalls
+    (``_STALLED`` iterations in a row with the same held ones) or runs out."""
+    held_before, steady = None, 0
+    for _ in range(_GLOBAL_ITERATIONS):
+        held, change, size = step(guess)
+        if not np.isfinite(change + size):
+            return None
+        same = held_before is not None and np.array_equal(held, held_before)
+        if change <= 1e-14 * size and same:
+            return guess
+        steady = steady + 1 if same else 0
+        if steady >= _STALLED:
+            return None
+        held_before = held
+    return None
+
+
+def _numpy_step(t_end, y0, start_phi, length, phases, trig, omega, a, b, c):
+    """The Newton step of :func:`_all_half_cycles` in numpy, as a function of the
+    amplitudes (moved in place): the held half-cycles, and the largest change and
+    amplitude of those that move before ``t_end``."""
+    identity = np.eye(_S.size)
+
+    def step(guess):
+        held = _held(guess[..., 0], start_phi[..., 0], omega, a, b, c)
+        free = [np.where(held, 0.0, k)[..., None] for k in (a, b, c)]
+        slope, time_rate, d_slope = _rates(guess, phases, omega[..., None], *free, trig=trig)
+        residual = _residual(guess, y0, length, slope)
+        jacobian = identity - length[..., None] * _INTEGRATE * d_slope[..., None, :]
+        both = np.linalg.solve(jacobian, np.stack([-residual, np.ones(guess.shape)], axis=-1))
+        moved = _steps(both[..., 0], both[..., 1])
+        guess += moved
+        relevant = ~held & (_begins(length, time_rate, held) < t_end)
+        return (held, np.max(np.abs(moved[relevant]), initial=0.0),
+                np.max(np.abs(guess[relevant]), initial=0.0))
+
+    return step
+
+
+def _kernel_arguments(y0, start_phi, length, omega, a, b, c):
+    """y0, start phases, lengths, omega and a, b, c (shape (3, m)) as the kernels take
+    them, C-ordered."""
+    return tuple(np.ascontiguousarray(v) for v in (
+        y0[:, 0], start_phi[..., 0], length[..., 0], omega[:, 0],
+        np.concatenate([a, b, c], axis=1).T))
+
+
+def _compiled_step(t_end, phases, arguments, kernels):
+    """As :func:`_numpy_step`, compiled (:mod:`mcfit.phase_plane_kernels`; ``arguments``
+    from :func:`_kernel_arguments`)."""
+    y0, start_phi, length, omega, coefficients = arguments
+
+    def step(guess):
+        held, free = kernels.held_coefficients(guess, start_phi, omega, coefficients)
+        residual, time_rate, d_slope = kernels.collocation_residuals(
+            guess, y0, phases, length, omega, free, _INTEGRATE_C)
+        moved = kernels.newton_step(residual, d_slope, length, _INTEGRATE_C)
+        change, size = kernels.newton_update(guess, moved, held, time_rate, length,
+                                             float(t_end), _INTEGRATE_C)
+        return held, change, size
+
+    return step
 
 
 def _held(starts, start_phi, omega, a, b, c):

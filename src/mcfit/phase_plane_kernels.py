@@ -14,7 +14,8 @@ import numpy as np
 
 from mcfit.compiled import compiled
 
-__all__ = ["collocation_residuals", "fine_nodes", "hermite_changes"]
+__all__ = ["collocation_residuals", "fine_nodes", "held_coefficients", "hermite_changes",
+           "newton_step", "newton_update"]
 
 _HALF_PI = 0.5 * math.pi
 
@@ -47,7 +48,8 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
     y0, omega : ndarray, shape (m,)
         Amplitude at the start (U), angular frequency (rad/s).
     phases : ndarray, shape (m, count, nodes)
-        Collocation phases (rad); after the first half-cycle every set's are alike.
+        Collocation phases (rad); after the first half-cycle the same in every
+        half-cycle of every set (from 0 to pi: :func:`mcfit.phase_plane._grid`).
     length : ndarray, shape (m, count)
         Phase length (rad) of each half-cycle.
     free : ndarray, shape (3, m, count)
@@ -65,17 +67,19 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
     residual = np.empty((m, count, size))
     time_rate = np.empty((m, count, size))
     d_slope = np.empty((m, count, size))
-    cos, sin = np.empty((count, size)), np.empty((count, size))
+    cos, sin = np.empty((2, size)), np.empty((2, size))  # the first half-cycle; the rest
     slope = np.empty(size)
     for k in range(m):
         values = amplitudes[min(k, rows - 1)]
         for h in range(count):
-            if k == 0 or h == 0:
+            row = min(h, 1)
+            if h == 0 or (k == 0 and h == 1):
                 for n in range(size):
-                    cos[h, n], sin[h, n] = math.cos(phases[k, h, n]), math.sin(phases[k, h, n])
+                    cos[row, n] = math.cos(phases[k, h, n])
+                    sin[row, n] = math.sin(phases[k, h, n])
             for n in range(size):
                 slope[n], time_rate[k, h, n], d_slope[k, h, n] = _rates(
-                    values[h, n], cos[h, n], sin[h, n], omega[k], free[0, k, h],
+                    values[h, n], cos[row, n], sin[row, n], omega[k], free[0, k, h],
                     free[1, k, h], free[2, k, h])
             entering = y0[k] if h == 0 else values[h - 1, size - 1]
             for n in range(size):
@@ -84,6 +88,187 @@ def collocation_residuals(amplitudes, y0, phases, length, omega, free, integrate
                     integral += slope[i] * integrate[n, i]
                 residual[k, h, n] = values[h, n] - entering - length[k, h] * integral
     return residual, time_rate, d_slope
+
+
+@compiled
+def _solve(augmented, size):
+    """Each system ``augmented[:, :, h]`` (size, size + k, count: a matrix and k
+    right-hand sides) solved in place, every h in step, the solutions in
+    ``augmented[:, size:, h]``: Gaussian elimination with partial pivoting (LAPACK's
+    getrf and getrs, the same operations). A zero pivot leaves inf or NaN, which the
+    caller's test of finite steps meets."""
+    _, width, count = augmented.shape
+    scale = np.empty(count)
+    for j in range(size):
+        for h in range(count):
+            pivot, largest = j, abs(augmented[j, j, h])
+            for i in range(j + 1, size):
+                if abs(augmented[i, j, h]) > largest:
+                    pivot, largest = i, abs(augmented[i, j, h])
+            if pivot != j:
+                for col in range(width):
+                    augmented[j, col, h], augmented[pivot, col, h] = (
+                        augmented[pivot, col, h], augmented[j, col, h])
+            scale[h] = 1.0 / augmented[j, j, h]
+        for i in range(j + 1, size):
+            for h in range(count):
+                augmented[i, j, h] *= scale[h]
+            for col in range(j + 1, width):
+                for h in range(count):
+                    augmented[i, col, h] -= augmented[i, j, h] * augmented[j, col, h]
+    for i in range(size - 1, -1, -1):
+        for col in range(i + 1, size):
+            for r in range(size, width):
+                for h in range(count):
+                    augmented[i, r, h] -= augmented[i, col, h] * augmented[col, r, h]
+        for r in range(size, width):
+            for h in range(count):
+                augmented[i, r, h] /= augmented[i, i, h]
+
+
+@compiled
+def newton_step(residual, d_slope, length, integrate):
+    """The Newton step of the collocation equations of all half-cycles at once (multiple
+    shooting): each half-cycle's Jacobian I - L*S*diag(f'(A)) solved for its own step
+    (right-hand side -G) and its response to a unit change of its start (right-hand
+    side 1), then the ends' recursion e_k = o_k + r_k*e_(k-1), e_(-1) = 0, and each
+    step its own plus its response times the end before it. The half-cycles' systems
+    are solved side by side, the half-cycle the innermost loop (:func:`_solve`).
+
+    Parameters
+    ----------
+    residual : ndarray, shape (m, count, nodes)
+        Residuals G of each set's equations (:func:`collocation_residuals`).
+    d_slope : ndarray, shape (m or 1, count, nodes)
+        d(dA/dphi)/dA at the collocation points of the sets whose Jacobians are used;
+        one row: set 0's for every set (the chord method).
+    length : ndarray, shape (m or 1, count)
+        Phase length (rad) of each half-cycle of those sets.
+    integrate : ndarray, shape (nodes, nodes)
+        As for :func:`collocation_residuals`.
+
+    Returns
+    -------
+    ndarray, shape (m, count, nodes)
+        The step of the amplitudes (U).
+    """
+    m, count, size = residual.shape
+    rows = d_slope.shape[0]
+    sets = m if rows == 1 else 1  # the sets each Jacobian serves
+    step = np.empty((m, count, size))
+    carried = np.empty((rows, count, size))
+    augmented = np.empty((size, size + 1 + sets, count))  # J, 1, then each set's -G
+    for j in range(rows):
+        for n in range(size):
+            for i in range(size):
+                for h in range(count):
+                    augmented[n, i, h] = ((1.0 if n == i else 0.0)
+                                          - length[j, h] * integrate[n, i] * d_slope[j, h, i])
+            for h in range(count):
+                augmented[n, size, h] = 1.0
+            for r in range(sets):
+                for h in range(count):
+                    augmented[n, size + 1 + r, h] = -residual[j + r, h, n]
+        _solve(augmented, size)
+        for h in range(count):
+            for n in range(size):
+                carried[j, h, n] = augmented[n, size, h]
+                for r in range(sets):
+                    step[j + r, h, n] = augmented[n, size + 1 + r, h]
+    for k in range(m):  # each set's own steps become its steps
+        r = carried[min(k, rows - 1)]
+        end = 0.0
+        for h in range(count):
+            for n in range(size):
+                step[k, h, n] += r[h, n] * end
+            end = step[k, h, size - 1]
+    return step
+
+
+@compiled
+def held_coefficients(amplitudes, start_phi, omega, coefficients):
+    """Where each set is held: from the first half-cycle that starts at a turning point
+    from which the swing may not cross 0 (:func:`mcfit.phase_plane._held`, the same
+    operations); and a, b, c as each half-cycle sees them.
+
+    Parameters
+    ----------
+    amplitudes : ndarray, shape (m, count, nodes)
+        Amplitudes (U) at the collocation points.
+    start_phi : ndarray, shape (m, count)
+        Phase of each half-cycle's start (rad).
+    omega : ndarray, shape (m,)
+        Angular frequency (rad/s).
+    coefficients : ndarray, shape (3, m)
+        a, b, c of each set.
+
+    Returns
+    -------
+    held : ndarray of bool, shape (m, count)
+    free : ndarray, shape (3, m, count)
+        a, b, c, 0 where the set is held.
+    """
+    m, count = start_phi.shape
+    held = np.empty((m, count), dtype=np.bool_)
+    free = np.empty((3, m, count))
+    for k in range(m):
+        a, b, c = coefficients[0, k], coefficients[1, k], coefficients[2, k]
+        stuck = False
+        for h in range(count):
+            amplitude = amplitudes[k, h, 0]
+            stuck = stuck or (start_phi[k, h] == 0.0 and omega[k] * amplitude
+                              <= math.pi * (c + amplitude * (b + a * amplitude)))
+            held[k, h] = stuck
+            for i in range(3):
+                free[i, k, h] = 0.0 if stuck else coefficients[i, k]
+    return held, free
+
+
+@compiled
+def newton_update(amplitudes, step, held, time_rate, length, t_end, integrate):
+    """``amplitudes`` moved by ``step`` in place, and the size of the step where it
+    matters: the largest change and amplitude of the half-cycles that are not held and
+    start before ``t_end`` (held ones last no time; :func:`mcfit.phase_plane._begins`).
+
+    Parameters
+    ----------
+    amplitudes, step : ndarray, shape (m, count, nodes)
+        Amplitudes (U) at the collocation points and their Newton step.
+    held : ndarray of bool, shape (m, count)
+    time_rate : ndarray, shape (m, count, nodes)
+        dt/dphi (s) at the collocation points before the step.
+    length : ndarray, shape (m, count)
+        Phase length (rad) of each half-cycle.
+    t_end : float
+        End of the record (s).
+    integrate : ndarray, shape (nodes, nodes)
+        As for :func:`collocation_residuals`.
+
+    Returns
+    -------
+    change, size : float
+        Largest |step| and |amplitude| (U), 0 where no half-cycle counts; NaN where one
+        of them is not finite.
+    """
+    m, count, size = amplitudes.shape
+    change, largest, finite = 0.0, 0.0, True
+    for k in range(m):
+        elapsed = 0.0  # to the end of half-cycle h
+        for h in range(count):
+            duration = 0.0
+            if not held[k, h]:
+                for i in range(size):
+                    duration += time_rate[k, h, i] * integrate[size - 1, i]
+                duration *= length[k, h]
+            elapsed += duration
+            counts = not held[k, h] and elapsed - duration < t_end
+            for n in range(size):
+                amplitudes[k, h, n] += step[k, h, n]
+                if counts:
+                    moved, value = abs(step[k, h, n]), abs(amplitudes[k, h, n])
+                    finite = finite and math.isfinite(moved + value)
+                    change, largest = max(change, moved), max(largest, value)
+    return (change, largest) if finite else (math.nan, math.nan)
 
 
 @compiled
@@ -99,7 +284,8 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
     amplitudes, time_rates : ndarray, shape (m, count, nodes)
         Amplitude (U) and dt/dphi (s) at each half-cycle's collocation points.
     start_phi, length, begins : ndarray, shape (m, count)
-        Phase of the start (rad), phase length (rad) and start time (s) of each.
+        Phase of the start (rad), phase length (rad) and start time (s) of each; after
+        the first, every half-cycle runs from 0 to pi (:func:`mcfit.phase_plane._grid`).
     free : ndarray, shape (3, m, count)
         a, b, c as each half-cycle sees them (0 where the set is held).
     omega, base : ndarray, shape (m,)
@@ -124,7 +310,7 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
     out = np.zeros((5, m, count * fine))
     cos, sin = np.empty(fine), np.empty(fine)
     elapsed, fine_a, fine_t = np.empty(size), np.empty(fine), np.empty(fine)
-    trig_of = -1  # the half-cycle whose phases' cos and sin are in ``cos``, ``sin``
+    trig_of = -1  # 0: the first half-cycle's cos and sin in ``cos``, ``sin``; 1: the rest's
     for h in range(count):
         for k in range(m):
             at = h * fine
@@ -133,8 +319,8 @@ def fine_nodes(amplitudes, time_rates, start_phi, length, begins, free, omega, b
                 out[1, k, at:at + fine] = rest[k, 1]
                 out[2, k, at:at + fine] = rest[k, 2]
                 continue
-            if h == 0 or trig_of != h:  # after the first, every set's phases are alike
-                trig_of = h
+            if h == 0 or trig_of != 1:  # after the first, every half-cycle's are alike
+                trig_of = min(h, 1)
                 for f in range(fine):
                     phi = start_phi[k, h] + length[k, h] * fine_s[f]
                     cos[f], sin[f] = math.cos(phi), math.sin(phi)
