@@ -5,7 +5,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from scipy.fft import next_fast_len, rfft
+from scipy.fft import next_fast_len
 
 from mcfit.errors import RecordError
 from mcfit.hum import peak_frequency
@@ -88,11 +88,10 @@ def _spectrum(t, x, dt, steps):
     v *= window
     # A long stretch is zero-padded to a fast length (the same periodogram, on a grid
     # finer by ``oversampling``): a length with a large prime factor, such as 1,000,001,
-    # takes the FFT 27 times as long. scipy's FFT: numpy's values, at a prime length in 0.6
-    # of its time.
+    # takes the FFT 27 times as long.
     size = next_fast_len(m, real=True) if m > _PADDED_SAMPLES else m
     oversampling = size / m
-    power = np.abs(rfft(v, size)) ** 2
+    power = np.abs(np.fft.rfft(v, size)) ** 2
     del v
     frequencies = np.fft.rfftfreq(size, d=dt)
     # Periods longer than half the stretch (bin 2 of its own length) are drift.
