@@ -37,8 +37,7 @@ def _fully_refined(t, turning, fit, monkeypatch):
     move (told no settle noise)."""
     search = mcfit.turning.find_turning_points
     with monkeypatch.context() as patch:
-        patch.setattr(mcfit.turning, "find_turning_points_of_model",
-                      lambda t, x, **_: search(t, x))
+        patch.setattr(mcfit.turning, "find_turning_points", lambda t, x, **_: search(t, x))
         return averaged_law_bias(t, turning, fit)
 
 
@@ -148,79 +147,3 @@ def test_the_settled_chain_predicts_as_the_full_refinement_on_random_records(mon
         for term, z in refined.z.items():
             assert abs(settled.z[term] - z) < max(0.03, 0.25 * abs(z))
     assert compared >= 25
-
-
-def _record_of(mix, q, noise, seed):
-    """40 cycles of 250 samples, y0 = 1, at Q ``q``: the first decay rate c/y0 + b + a*y0
-    = omega/(2*q), shared among the terms ``mix`` as in the bench's mixed batch; sample
-    noise ``noise``."""
-    share = {"b": (0.0, 1.0, 0.0), "bc": (0.0, 0.9, 0.1), "abc": (0.2, 0.7, 0.1)}[mix]
-    rate = math.pi / q
-    return simulate_record(*(s * rate for s in share), 1.0, 1.0, 40.0, 250.0, noise=noise,
-                           rng=np.random.default_rng(seed))
-
-
-@pytest.mark.parametrize(("mix", "q", "noise"), [
-    ("b", 4.0, 3e-3), ("b", 12.0, 1e-3), ("bc", 5.0, 1e-3), ("bc", 20.0, 3e-4),
-    ("abc", 6.0, 3e-3), ("abc", 15.0, 1e-3)])
-def test_the_model_search_predicts_as_the_records_search_would(mix, q, noise, monkeypatch):
-    """The chain searches the noise-free waveform by find_turning_points_of_model, which
-    skips the stages only a measured record needs: it finds the very turning points the
-    record's own search (told the same settle noise) finds there, and so predicts the
-    same bias (within 0.02 standard errors; the same decision)."""
-    t, x = _record_of(mix, q, noise, seed=len(mix) * 100 + int(q))
-    turning = find_turning_points(t, x)
-    fit = fit_turning_points(turning)
-    found = []
-    model_search = mcfit.turning.find_turning_points_of_model
-
-    def both(times, wave, settle_noise=None):
-        found.append((model_search(times, wave, settle_noise=settle_noise),
-                      find_turning_points(times, wave, settle_noise=settle_noise)))
-        return found[-1][0]
-
-    with monkeypatch.context() as patch:
-        patch.setattr(mcfit.turning, "find_turning_points_of_model", both)
-        cheap = averaged_law_bias(t, turning, fit)
-        patch.setattr(mcfit.turning, "find_turning_points_of_model",
-                      lambda times, wave, settle_noise=None: find_turning_points(
-                          times, wave, settle_noise=settle_noise))
-        full = averaged_law_bias(t, turning, fit)
-    assert cheap.how == full.how == "chain" and len(found) == 1
-    model, record = found[0]
-    for column in ("t", "y", "sigma", "used"):
-        np.testing.assert_array_equal(getattr(model, column), getattr(record, column))
-    assert cheap.z.keys() == full.z.keys()
-    for term, z in full.z.items():
-        assert abs(cheap.z[term] - z) <= 0.02
-    assert (cheap.largest > LIMIT) == (full.largest > LIMIT)
-
-
-def test_the_pendulums_chain_searches_its_swing_as_a_model(monkeypatch):
-    """pendulum_law_bias searches the noise-free swing with find_turning_points_of_model
-    and predicts what the record's own search of it predicts (the same turning points)."""
-    from scipy import integrate
-
-    from mcfit.model_error import pendulum_law_bias
-
-    omega = 2 * math.pi  # released at 1 rad, viscous at Q 31 (small swings), 20 periods
-    t = np.arange(0.0, 20.0, 1 / 40)
-    swing = integrate.solve_ivp(
-        lambda _, s: [s[1], -0.2 * s[1] - omega**2 * math.sin(s[0])], (0.0, t[-1]),
-        [1.0, 0.0], method="DOP853", rtol=1e-10, atol=1e-12, t_eval=t).y[0]
-    theta = swing + 1e-3 * np.random.default_rng(5).standard_normal(t.size)
-    turning = find_turning_points(t, theta)
-    fit = fit_turning_points(turning, pendulum=True, model="b")
-    record_search = mcfit.turning.find_turning_points
-    with monkeypatch.context() as patch:
-        patch.setattr(mcfit.turning, "find_turning_points_of_model",
-                      lambda times, x, settle_noise=None: record_search(
-                          times, x, settle_noise=settle_noise))
-        expected = pendulum_law_bias(t, turning, fit)
-
-    def refused(*args, **kwargs):
-        raise AssertionError("the record's search ran on the model's swing")
-
-    monkeypatch.setattr(mcfit.turning, "find_turning_points", refused)
-    bias = pendulum_law_bias(t, turning, fit)
-    assert 0 < bias < math.inf and bias == expected

@@ -724,25 +724,3 @@ def test_an_adc_record_is_clipped_only_where_it_sits_on_a_rail():
     railed = np.round(np.clip(swing + np.random.default_rng(1).normal(0.0, 0.3, t.size),
                               60, 200))
     assert "clipped" in find_turning_points(t, railed).excluded_reason
-
-
-def test_the_model_search_skips_the_measured_records_stages(monkeypatch):
-    """find_turning_points_of_model reads no steady line and no still start (a noise-free
-    model's waveform has neither) and finds the turning points find_turning_points finds
-    on that waveform, to the last digit."""
-    import mcfit.turning as turning
-
-    t, x = waveform(50, cycles=30, law=(1.0, 0.05, 0.1, 0.01))
-    expected = find_turning_points(t, x, settle_noise=1e-4)
-
-    def skipped(*args, **kwargs):
-        raise AssertionError("a measured record's stage ran")
-
-    for name in ("find_steady_line", "_held_until", "_checked_samples", "_find_gaps"):
-        monkeypatch.setattr(turning, name, skipped)
-    found = turning.find_turning_points_of_model(t, x, settle_noise=1e-4)
-    for column in ("t", "y", "sigma", "sign", "used"):
-        np.testing.assert_array_equal(getattr(found, column), getattr(expected, column))
-    assert found.excluded_reason == expected.excluded_reason
-    assert (found.period, found.equilibrium, found.equilibrium_drift) == (
-        expected.period, expected.equilibrium, expected.equilibrium_drift)

@@ -80,7 +80,7 @@ def _smallest_rate_q(fit):
 
 def _chain_bias(t, turning, fit, stderr):
     from mcfit.errors import McfitError
-    from mcfit.turning import find_turning_points_of_model
+    from mcfit.turning import find_turning_points
 
     used = np.flatnonzero(turning.used)
     t0 = float(turning.t[used[0]])
@@ -96,8 +96,7 @@ def _chain_bias(t, turning, fit, stderr):
     try:
         # Refined as far as the record's crests were: until their shifts are within the
         # record's sample noise (a noise-free waveform would take every pass).
-        found = find_turning_points_of_model(times, x,
-                                             settle_noise=_positive(turning.noise_sigma))
+        found = find_turning_points(times, x, settle_noise=_positive(turning.noise_sigma))
         again = _fitted_values(found, fit.model)
     except McfitError:
         return {k: math.inf for k in fit.selection.terms}
@@ -122,7 +121,7 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
     from mcfit.equation_of_motion import motion_with_sensitivities
     from mcfit.errors import McfitError
     from mcfit.fit.pendulum import fit_turning_points_of_pendulum
-    from mcfit.turning import find_turning_points_of_model
+    from mcfit.turning import find_turning_points
 
     used = np.flatnonzero(turning.used)
     t0 = float(turning.t[used[0]])
@@ -134,8 +133,8 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
         times - t0, v["y0"] * s, theta0, omega, v["b"], 0.75 * math.pi * v["a"] / (omega * s),
         0.5 * math.pi * omega * v["c"] * s, restoring="pendulum", rtol=1e-10)
     try:
-        found = find_turning_points_of_model(times, turning.equilibrium_at(times) + swing / s,
-                                             settle_noise=_positive(turning.noise_sigma))
+        found = find_turning_points(times, turning.equilibrium_at(times) + swing / s,
+                                    settle_noise=_positive(turning.noise_sigma))
         again = fit_turning_points_of_pendulum(found, found.used_sigma(), degrees,
                                                model=fit.model)
     except McfitError:

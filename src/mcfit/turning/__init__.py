@@ -38,13 +38,9 @@ The stages, one module each: :mod:`.spectrum` (step 1), :mod:`.equilibrium`,
 :mod:`.refine` (steps 2 to 4), :mod:`.windows` (the half-cycle fits), :mod:`.period`,
 :mod:`.crests` (step 5), :mod:`.release`, :mod:`.floor` and :mod:`.checks` (step 6);
 :mod:`.tables` for turning points given directly, and :mod:`.result` for the result.
-:func:`find_turning_points_of_model` searches a model's noise-free waveform (the averaged
-law's bias chain) without the stages only a measured record needs.
 """
 
 from __future__ import annotations
-
-from typing import NamedTuple
 
 import numpy as np
 
@@ -75,7 +71,6 @@ from mcfit.turning.floor import FLOOR_FACTOR  # noqa: F401, E402
 __all__ = [
     "TurningPoints",
     "find_turning_points",
-    "find_turning_points_of_model",
     "turning_points_from_table",
     "turning_points_of",
     "MIN_TURNING_POINTS",
@@ -152,80 +147,6 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     refined = _refine(samples, centres, signs, line, period,
                       noise if settle_noise is None else float(settle_noise), held)
     del centres, signs  # the coarse crests: not needed once refined
-    return _from_refined(t, samples, refined, noise, held, notes,
-                         _About(domain, source, tuple(gaps), hum, samples_per_cycle))
-
-
-def find_turning_points_of_model(t, x, *, settle_noise=None, source="model"):
-    """Turning points of a model's noise-free waveform, found as :func:`find_turning_points`
-    finds a record's, without the stages that only a measured record needs.
-
-    For the averaged law's bias chain (:func:`mcfit.model_error.averaged_law_bias`): the
-    waveform of a record's fitted coefficients, sampled at its times, has no missing
-    samples, no steady line (hum) and no still start, so the checks of the samples, the
-    steady-line search, the search for a still start and the gap notes are skipped.
-    Every stage that sets the crests is the record's own: the spectrum's coarse period
-    and noise and the coarse equilibrium line (the refinement ends within
-    ``settle_noise``, so where it starts shows in the crests), the refinement with its
-    equilibrium correction, the free decay, the floor, the crest phase and the
-    projections. On such a waveform, the turning points :func:`find_turning_points`
-    finds, to the last digit.
-
-    Parameters
-    ----------
-    t : ndarray, shape (n,)
-        Sample times, strictly increasing.
-    x : ndarray, shape (n,)
-        The waveform, finite at every sample.
-    settle_noise : float, optional
-        Sample noise sigma within which the crests' shifts count as settled (see
-        :func:`find_turning_points`; for a model's copy, the record's noise).
-    source : str
-        Name of the waveform for messages.
-
-    Returns
-    -------
-    TurningPoints
-        With the notes of the stages kept.
-
-    Raises
-    ------
-    RecordError
-        No oscillation, or fewer than 4 usable turning points.
-    """
-    t = np.asarray(t, dtype=np.float64)
-    x = np.asarray(x, dtype=np.float64)
-    steps = np.diff(t)
-    dt = float(_median(steps))
-    spectral_period, noise = _spectrum(t, x, dt, steps)[:2]
-    del steps
-    period = _checked_period(spectral_period, dt, source)
-    line = _equilibrium_line(t, x, period, noise)
-    centres, signs = _coarse_extrema(t, x, *line, period, period / dt, noise, source)
-    samples = Samples.of(t, x)
-    refined = _refine(samples, centres, signs, line, period,
-                      noise if settle_noise is None else float(settle_noise), None)
-    del centres, signs
-    return _from_refined(t, samples, refined, noise, None, [],
-                         _About("time", source, (), None, period / dt))
-
-
-class _About(NamedTuple):
-    """What the result says of the record beside its crests."""
-
-    domain: str
-    source: str
-    gaps: tuple
-    steady_line: object  # mcfit.hum.SteadyLine removed, or None
-    samples_per_cycle: float
-
-
-def _from_refined(t, samples, refined, noise, held, notes, about):
-    """Steps 5 and 6 from the ``refined`` crests of ``samples`` (:class:`Samples`; ``t``
-    the record's times, NaN samples included): the crests measured once more, the free
-    decay, the crest phase and the projected amplitudes, and the checks. ``noise`` is the
-    sample noise where the fits' residuals give none, ``held`` the time a still start
-    ends (or None), ``notes`` those so far."""
     line = refined.line
     m = _measure(samples, refined, noise)
     refined_period = refined.period
@@ -234,7 +155,7 @@ def _from_refined(t, samples, refined, noise, held, notes, about):
     # Where the free decay starts, and where it ends in a floor.
     release_time, free, release_cause = _release(
         held, m.centres, m.signs, m.magnitude, m.magnitude_sigma, m.measured, refined_period)
-    end, floor_level, floor_start = _decay_end(m, free, refined_period, samples.t[-1])
+    end, floor_level, floor_start = _decay_end(m, free, refined_period, tf[-1])
     in_decay = np.zeros(m.centres.size, dtype=bool)
     in_decay[free:end] = True
     period, period_sigma, drift, drift_sigma = _period_and_drift(
@@ -242,8 +163,7 @@ def _from_refined(t, samples, refined, noise, held, notes, about):
         _phase_weights(m.magnitude, m.magnitude_sigma))
 
     # The crest phase, continued, and the amplitudes projected onto it.
-    limit = (samples.t[-1] if floor_start is None
-             else m.centres[floor_start] - 0.5 * period / 2)
+    limit = tf[-1] if floor_start is None else m.centres[floor_start] - 0.5 * period / 2
     columns, phase_lost = _projected_crests(samples, m, period, line, slice(free, end), limit)
     crests, crest_signs, y, sigma_y, log_step, reasons = _with_excluded(
         m, free, floor_start, columns)
@@ -256,16 +176,15 @@ def _from_refined(t, samples, refined, noise, held, notes, about):
     sigma_y, scatter = _with_scatter(y, sigma_y, log_step, reasons == "")
     notes += tail + scatter
     notes += _cut_at_stop(crests, y, sigma_y, reasons)
-    rise_release, rise_notes, warnings = _cut_at_rise(crests, y, sigma_y, reasons,
-                                                      about.source, floor_level)
+    rise_release, rise_notes, warnings = _cut_at_rise(crests, y, sigma_y, reasons, source,
+                                                      floor_level)
     notes += rise_notes
     release_time = rise_release if np.isfinite(rise_release) else release_time
     used = reasons == ""
-    _check_count(y, reasons, about.source)
+    _check_count(y, reasons, source)
     e0, e1, t_ref = line
-    notes += _closing_notes(about.domain, drift, drift_sigma,
-                            e1 * (samples.t[-1] - samples.t[0]), m.noise_sigma, y,
-                            about.samples_per_cycle)
+    notes += _closing_notes(domain, drift, drift_sigma, e1 * (tf[-1] - tf[0]), m.noise_sigma,
+                            y, samples_per_cycle)
     return TurningPoints(
         t=_frozen(crests), y=_frozen(y), sigma=_frozen(sigma_y),
         sign=_frozen(crest_signs.astype(np.int8)), used=_frozen(used),
@@ -274,9 +193,9 @@ def _from_refined(t, samples, refined, noise, held, notes, about):
         period_drift_sigma=drift_sigma,
         equilibrium=float(e0 + e1 * (t[0] - t_ref)), equilibrium_drift=float(e1),
         noise_sigma=float(m.noise_sigma), noise_floor=float(floor_level),
-        noise_floor_time=floor_time, release_time=release_time, gaps=about.gaps,
-        domain=about.domain, notes=tuple(notes), warnings=tuple(warnings),
-        steady_line=about.steady_line, t_start=float(t[0]))
+        noise_floor_time=floor_time, release_time=release_time, gaps=tuple(gaps),
+        domain=domain, notes=tuple(notes), warnings=tuple(warnings), steady_line=hum,
+        t_start=float(t[0]))
 
 
 def _coarse_spectrum(tf, xf, dt, steps):
