@@ -144,3 +144,15 @@ def test_the_final_swings_load_numba_on_the_jacobians_path_only():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True, timeout=300)
     assert result.stdout.split() == ["True", "False", "False", "True"]
+
+
+def test_the_compiled_swings_take_the_numpy_swings_constants():
+    """The kernel's compiled-in copies of the pieces, iterations and grid are
+    mcfit.phase_plane's."""
+    from mcfit import phase_plane, swing_kernels
+
+    assert swing_kernels._PIECES == phase_plane._SWING_PIECES
+    assert swing_kernels._ITERATIONS == phase_plane._SWING_ITERATIONS
+    assert swing_kernels._MAX_PIECES == phase_plane._MAX_PIECES
+    assert swing_kernels._REVERSAL_ITERATIONS == phase_plane._REVERSAL_ITERATIONS
+    assert swing_kernels._GRID + 1 == phase_plane._SWING_GRID.shape[0]

@@ -567,3 +567,21 @@ def test_a_second_call_at_the_same_point_reuses_the_motion_until_the_steps_chang
     law.typical = 10 * law.typical
     law.residual(p)
     assert len(solved) == 2
+
+
+def test_the_second_form_takes_the_first_forms_sample_noise(monkeypatch):
+    """Both forms fit the same window: its sample noise is estimated once, and the
+    second form's laws carry the first's."""
+    from mcfit.bench.waveform_speed import q_record
+
+    t, x = q_record(5, "b", 2026)
+    turning = find_turning_points(t, x)
+    start = WaveformStart.of_fit(fit_turning_points(turning))
+    calls, ranked = [], []
+    counted, rank = waveform.sample_noise, waveform.rank_form
+    monkeypatch.setattr(waveform, "sample_noise", lambda xw: calls.append(1) or counted(xw))
+    monkeypatch.setattr(waveform, "rank_form",
+                        lambda *a, **k: ranked.append(rank(*a, **k)) or ranked[-1])
+    fit_both_forms(t, x, turning, start)
+    assert len(ranked) == 2 and len(calls) == 1
+    assert ranked[0].law.noise == ranked[1].law.noise == counted(ranked[0].law.x)

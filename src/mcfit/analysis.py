@@ -310,16 +310,18 @@ def _auto_method(record, turning, fit, *, criterion, model):
                         bool(misfit_warning(fit.reduced_chi_square, dof)))
 
 
-# A term whose value is within this many standard errors of the averaged law's predicted
-# bias of it may be that bias alone.
+# A term whose value less the averaged law's predicted bias of it is at most this many
+# standard errors: the bias explains it, or more than explains it.
 _EXPLAINED = 2.0
 
 
 def auto_start(fit, error):
     """Where auto starts the waveform fit: from the turning-point ``fit``, with its model
-    less the terms the averaged law's predicted bias (``error``, where the chain predicted
-    it) explains; at Q = 5 with b and c, a = 16 standard errors was 57 of bias. The terms
-    left out are still estimated, and fitted where they may matter."""
+    less the terms whose value, less the bias the chain predicts for it (``error``), is
+    at most _EXPLAINED standard errors: the averaged law cannot show such a term (at
+    Q = 5 with b and c, a = 16 standard errors against 57 of bias). The terms left out
+    are still estimated, and fitted where they may matter: a real term dropped costs a
+    second fit, a spurious one kept costs a fit of a model not reported."""
     from mcfit.fit.waveform import WaveformStart
     from mcfit.model_error import noise_stderr
 

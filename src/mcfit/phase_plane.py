@@ -616,6 +616,8 @@ _SWING_GRID = np.polynomial.chebyshev.chebvander(np.linspace(-1.0, 1.0, 33),
 _SWING_PIECES = (1.0, 0.1)  # half periods: the first piece of a half-swing, the others
 _SWING_ITERATIONS = 30
 _MAX_PIECES = 400
+_REVERSAL_ITERATIONS = 60
+# (mcfit.swing_kernels holds its own copies of these, compiled in: a test keeps them equal.)
 # The compiled final swings' matrices, C-ordered (numba compiles one version per layout),
 # and the pieces of a first call.
 _SWING_KERNEL = tuple(np.ascontiguousarray(v) for v in (
@@ -779,7 +781,7 @@ def _reversal(v_of, sense, length):
     """The first time in (0, length] where the velocity of sign ``sense`` reaches 0
     (Newton's method on the interpolant inside the bracket of a grid; ``length`` where
     it does not)."""
-    grid = np.linspace(0.0, length, 33)
+    grid = np.linspace(0.0, length, _SWING_GRID.shape[0])
     moving = sense * v_of(grid) > 0
     moving[0] = True
     stopped = np.flatnonzero(~moving)
@@ -788,7 +790,7 @@ def _reversal(v_of, sense, length):
     low, high = grid[stopped[0] - 1], grid[stopped[0]]
     rate = v_of.derivative()
     time = 0.5 * (low + high)
-    for _ in range(60):
+    for _ in range(_REVERSAL_ITERATIONS):
         value = float(v_of(time))
         if value == 0.0:
             break

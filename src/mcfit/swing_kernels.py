@@ -26,8 +26,10 @@ __all__ = ["NEIGHBOURS", "DIFFERENT", "ENDLESS", "neighbour_swings"]
 # 0's (reverse, or are held, in another piece); the swings did not stop within MAX_PIECES.
 NEIGHBOURS, DIFFERENT, ENDLESS = 0, 1, 2
 _HALF_PI = 0.5 * math.pi
+# As in mcfit.phase_plane (its numpy final swings), copied so that the compiled code in
+# the cache cannot keep another module's old values; a test keeps them equal.
 _PIECES = (1.0, 0.1)  # half periods: a first piece of a half-swing, the others
-_ITERATIONS = 30  # Newton iterations on a piece of set 0 (these three as in phase_plane)
+_ITERATIONS = 30  # Newton iterations on a piece of set 0
 _MAX_PIECES = 400
 _GRID = 32  # intervals of a piece where a reversal is looked for
 _REVERSAL_ITERATIONS = 60
