@@ -1,6 +1,8 @@
 """The velocity forms' closed form against an independent tight integration."""
 
 import math
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -146,3 +148,18 @@ def test_the_motion_and_jacobian_are_those_of_the_reference(name):
     for i in range(5):
         scale = np.max(np.abs(expected[1 + i]))
         assert np.max(np.abs(jacobian[i] - expected[1 + i])) <= 1e-13 * scale, i
+
+
+def test_numba_loads_with_the_motion_not_with_the_module():
+    """The turning-point path imports this module (for AT_REST), not numba; the motion
+    loads the compiled kernel."""
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "from mcfit import viscous_motion\n"
+        "print('numba' in sys.modules, 'mcfit.viscous_kernels' in sys.modules)\n"
+        "viscous_motion.viscous_motion(np.linspace(0.0, 3.0, 31), 1.0, 0.2, 6.0, 0.3)\n"
+        "print('mcfit.viscous_kernels' in sys.modules)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True, timeout=300)
+    assert result.stdout.split() == ["False", "False", "True"]
