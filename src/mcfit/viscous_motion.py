@@ -123,7 +123,10 @@ def _motion(tau, y0, theta0, omega, beta, c, derivatives):
 
 def _gradients(*jets):
     """The gradients of ``jets`` as columns, shape (5, len(jets))."""
-    return np.column_stack([np.broadcast_to(j.g, (len(_PARAMETERS),)) for j in jets])
+    columns = np.empty((len(_PARAMETERS), len(jets)))
+    for i, jet in enumerate(jets):
+        columns[:, i] = jet.g
+    return columns
 
 
 def _constant(value, tau, derivatives):
