@@ -163,3 +163,15 @@ def test_numba_loads_with_the_motion_not_with_the_module():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             check=True, timeout=300)
     assert result.stdout.split() == ["False", "False", "True"]
+
+
+def test_the_kernel_compiles_once():
+    """One type per argument (a first compilation, about 0.6 s, not one per call's kind):
+    the motion alone, a record within the first half-cycle, an empty one, a strided one."""
+    viscous_motion(np.arange(10.0)[::2], 1.0, 0.3, OMEGA, 0.1, 0.01)
+    viscous_motion_jacobian(np.linspace(0.0, 5.0, 101), 1.0, 0.3, OMEGA, 0.1, 0.01)
+    viscous_motion_jacobian(np.linspace(0.0, 0.01, 5), 1.0, 0.3, OMEGA, 0.1, 0.0)
+    viscous_motion_jacobian(np.empty(0), 1.0, 0.0, OMEGA, 0.1, 0.0)
+    from mcfit.viscous_kernels import damped_swings
+
+    assert len(damped_swings.signatures) == 1
