@@ -118,17 +118,18 @@ def _run(code, **environment):
     return result.stdout.split()
 
 
-def test_a_record_that_keeps_its_turning_points_does_not_load_numba():
+def test_a_record_that_keeps_its_turning_points_does_not_load_numba(tmp_path):
     """A high-Q linear record (auto keeps the turning-point fit) and no numba; integrating
-    a motion then loads it."""
-    code = """
+    a motion then loads it. The record is made here: its closed form is compiled."""
+    t = np.arange(0.0, 40.0, 0.01)
+    x = viscous_motion_jacobian(t, 1.0, 0.0, 6.283, 0.01, 0.002)[0]
+    np.save(tmp_path / "x.npy", x + np.random.default_rng(7).normal(0.0, 1e-4, t.size))
+    code = f"""
 import sys
 import numpy as np
 from mcfit.api import analyse
-from mcfit.viscous_motion import viscous_motion
 t = np.arange(0.0, 40.0, 0.01)
-x = viscous_motion(t, 1.0, 0.0, 6.283, 0.01, 0.002)
-x = x + np.random.default_rng(7).normal(0.0, 1e-4, t.size)
+x = np.load({str(tmp_path / "x.npy")!r})
 print(analyse(t, x).fit.method, "numba" in sys.modules)
 from mcfit.equation_of_motion import motion_with_sensitivities
 motion_with_sensitivities(t[:10], 1.0, 0.0, 6.283, 0.1)

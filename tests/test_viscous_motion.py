@@ -1,6 +1,9 @@
 """The velocity forms' closed form against an independent tight integration."""
 
 import math
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +14,23 @@ from mcfit.bench.reference_motion import integrate
 from mcfit.viscous_motion import coulomb_force, viscous_motion, viscous_motion_jacobian
 
 OMEGA = 2 * math.pi
+# x and the Jacobian from the numpy implementation that preceded the compiled kernel, on
+# 241 samples from 0 to the duration (last item) of each set of (y0, theta0, omega, beta, c).
+REFERENCE = Path(__file__).with_name("data") / "viscous_motion.npz"
+REFERENCE_CASES = {
+    "q1.5_from_crest": (1.0, 0.0, OMEGA, OMEGA / 3.0, 0.0, 4.0),
+    "q3_sticks": (1.0, 0.0, OMEGA, OMEGA / 6.0, 0.04, 6.0),
+    "q10_trough_friction": (1.3, math.pi, OMEGA, OMEGA / 20.0, 0.01, 12.0),
+    "q5_trough": (0.8, -math.pi, OMEGA, OMEGA / 10.0, 0.0, 8.0),
+    "q200_phase": (1.0, 0.7, OMEGA, OMEGA / 400.0, 0.0, 40.0),
+    "q200_phase_friction": (1.0, 0.7, OMEGA, OMEGA / 400.0, 0.002, 40.0),
+    "q8_sticks_negative_phase": (2.0, -2.3, OMEGA, OMEGA / 16.0, 0.05, 10.0),
+    "q1.5_sticks_at_once": (1.0, 2.0, OMEGA, OMEGA / 3.0, 0.1, 3.0),
+    "rest_in_dead_band": (0.001, 0.0, OMEGA, OMEGA / 40.0, 0.02, 5.0),
+    "q50_trough_friction": (1.0, 3 * math.pi, 3.0, 0.03, 0.003, 30.0),
+    "q2_sticks_early": (1.0, 0.3, OMEGA, OMEGA / 4.0, 0.08, 5.0),
+    "q30_quadrature": (2.5, 1.5, 9.0, 0.15, 0.0, 15.0),
+}
 
 
 @settings(max_examples=25, deadline=None)
@@ -112,3 +132,46 @@ def test_the_jacobian_of_a_stuck_mass_is_that_of_its_stop():
     assert np.all(held == 0.001)
     np.testing.assert_array_equal(still, np.outer([1.0, 0.0, 0.0, 0.0, 0.0],
                                                   np.ones(tau.size)))
+
+
+@pytest.mark.parametrize("name", sorted(REFERENCE_CASES))
+def test_the_motion_and_jacobian_are_those_of_the_reference(name):
+    """Starts at a crest, a trough (theta0 = +-pi, 3*pi) or between, with and without
+    friction, the mass sticking inside the record or not, Q from 1.5 to 200: x within
+    1e-13 of y0 and each derivative within 1e-13 of its largest stored value."""
+    *p, duration = REFERENCE_CASES[name]
+    tau = np.linspace(0.0, duration, 241)
+    x, jacobian = viscous_motion_jacobian(tau, *p)
+    with np.load(REFERENCE) as stored:
+        expected = stored[name]
+    assert np.max(np.abs(x - expected[0])) <= 1e-13 * p[0]
+    for i in range(5):
+        scale = np.max(np.abs(expected[1 + i]))
+        assert np.max(np.abs(jacobian[i] - expected[1 + i])) <= 1e-13 * scale, i
+
+
+def test_numba_loads_with_the_motion_not_with_the_module():
+    """The turning-point path imports this module (for AT_REST), not numba; the motion
+    loads the compiled kernel."""
+    code = (
+        "import sys\n"
+        "import numpy as np\n"
+        "from mcfit import viscous_motion\n"
+        "print('numba' in sys.modules, 'mcfit.viscous_kernels' in sys.modules)\n"
+        "viscous_motion.viscous_motion(np.linspace(0.0, 3.0, 31), 1.0, 0.2, 6.0, 0.3)\n"
+        "print('mcfit.viscous_kernels' in sys.modules)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            check=True, timeout=300)
+    assert result.stdout.split() == ["False", "False", "True"]
+
+
+def test_the_kernel_compiles_once():
+    """One type per argument (a first compilation, about 0.6 s, not one per call's kind):
+    the motion alone, a record within the first half-cycle, an empty one, a strided one."""
+    viscous_motion(np.arange(10.0)[::2], 1.0, 0.3, OMEGA, 0.1, 0.01)
+    viscous_motion_jacobian(np.linspace(0.0, 5.0, 101), 1.0, 0.3, OMEGA, 0.1, 0.01)
+    viscous_motion_jacobian(np.linspace(0.0, 0.01, 5), 1.0, 0.3, OMEGA, 0.1, 0.0)
+    viscous_motion_jacobian(np.empty(0), 1.0, 0.0, OMEGA, 0.1, 0.0)
+    from mcfit.viscous_kernels import damped_swings
+
+    assert len(damped_swings.signatures) == 1

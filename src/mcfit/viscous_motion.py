@@ -1,5 +1,5 @@
 """The velocity forms of the damping that have a closed form: viscous damping with Coulomb
-friction, x'' + 2*beta*x' + mu*sgn(x') + w**2*x = 0 (THEORY.md section 9), numpy only.
+friction, x'' + 2*beta*x' + mu*sgn(x') + w**2*x = 0 (THEORY.md section 9).
 
 Between two reversals of the velocity the equation is linear, with the centre moved to
 -sgn(x')*mu/w**2, so each half-cycle is a damped cosine about its own centre. From rest
@@ -13,7 +13,9 @@ c = 2*mu/(pi*w).
 :func:`viscous_motion_jacobian` gives the derivatives of x with respect to the five
 parameters in closed form too (piecewise where the mass sticks): every scalar of the
 solution carries its gradient (:class:`mcfit.jets.Jet`), and x's partial derivatives with respect to
-those scalars are combined with them once per sample.
+those scalars are combined with them once per sample. The per-sample work is compiled
+(:mod:`mcfit.viscous_kernels`, numba), imported at the first motion only: the
+turning-point path imports this module without numba.
 """
 
 from __future__ import annotations
@@ -78,7 +80,7 @@ def viscous_motion_jacobian(tau, y0, theta0, omega, beta, c=0.0):
 
 
 def _motion(tau, y0, theta0, omega, beta, c, derivatives):
-    tau = np.asarray(tau, dtype=float)
+    tau = np.ascontiguousarray(tau, dtype=float)
     y0, theta0, omega, beta, c = Jet.variables((y0, theta0, omega, beta, c))
     squared = omega * omega - beta * beta
     damped = (squared.sqrt() if squared.v > 1e-12 * omega.v * omega.v
@@ -98,53 +100,33 @@ def _motion(tau, y0, theta0, omega, beta, c, derivatives):
     first = Jet.atan2(v0, start * damped + beta * slope)
     first = Jet(first.v % math.pi or math.pi, first.g)
     first_end = first / damped
-    x = np.empty(tau.shape)
-    jacobian = np.empty((len(_PARAMETERS), tau.size)) if derivatives else None
-    later = tau > first_end.v
-    early = ~later
-    now = tau[early]
-    decay = np.exp(-beta.v * now)
-    cos, sin = np.cos(damped.v * now), np.sin(damped.v * now)
-    moved = decay * (start.v * cos + slope.v * sin)
-    x[early] = centre.v + moved
-    if derivatives:
-        # x's partial derivatives in centre, start, slope, beta and w_d, by the chain rule.
-        partials = np.array([np.ones(now.size), decay * cos, decay * sin, -now * moved,
-                             now * decay * (slope.v * cos - start.v * sin)])
-        jacobian[:, early] = _gradients(centre, start, slope, beta, damped) @ partials
-    if not np.any(later):
-        return x, jacobian
-    x1 = centre + (beta * first_end * -1.0).exp() * (start * first.cos() + slope * first.sin())
     half = math.pi / damped
-    count = int(math.ceil((tau[-1] - first_end.v) / half.v)) + 1
-    points, point_gradients = _turning_points(x1, offset, (beta * half * -1.0).exp(), count)
-    k = np.minimum(((tau[later] - first_end.v) // half.v).astype(np.int64), points.size - 1)
-    since = tau[later] - first_end.v - k * half.v
-    at = points[k]
-    centre_k = np.sign(at) * offset.v
-    moving = np.abs(at) > offset.v
-    swing_decay = np.exp(-beta.v * since)
-    swing_cos, swing_sin = np.cos(damped.v * since), np.sin(damped.v * since)
-    swing = swing_decay * (swing_cos + beta.v / damped.v * swing_sin)
-    swing[~moving] = 1.0  # stuck: x stays at the turning point
-    size = at - centre_k
-    x[later] = centre_k + size * swing
-    if derivatives:
-        # Partial derivatives of the swing in its time, beta and w_d; held samples none.
-        by_time = -swing_decay * swing_sin * (omega.v * omega.v / damped.v) * moving
-        by_beta = (swing_decay * swing_sin / damped.v - since * swing) * moving
-        by_damped = swing_decay * (since * (beta.v / damped.v * swing_cos - swing_sin)
-                                   - beta.v / damped.v**2 * swing_sin) * moving
-        partials = size * np.array([-by_time, -k * by_time, by_beta, by_damped])
-        jacobian[:, later] = (point_gradients[:, k] * swing
-                              + np.outer(offset.g, np.sign(at) * (1 - swing))
-                              + _gradients(first_end, half, beta, damped) @ partials)
-    return x, jacobian
+    if np.any(tau > first_end.v):
+        x1 = centre + (beta * first_end * -1.0).exp() * (start * first.cos()
+                                                         + slope * first.sin())
+        count = int(math.ceil((tau[-1] - first_end.v) / half.v)) + 1
+        points, point_gradients = _turning_points(x1, offset, (beta * half * -1.0).exp(),
+                                                  count)
+    else:
+        points, point_gradients = np.empty(0), np.empty((len(_PARAMETERS), 0))
+    # numba's import is the waveform fit's: the turning-point path imports this module.
+    from mcfit.viscous_kernels import damped_swings
+
+    scalars = np.array([first_end.v, half.v, beta.v, damped.v, omega.v, offset.v,
+                        centre.v, start.v, slope.v])
+    gradients = _gradients(centre, start, slope, beta, damped, first_end, half, offset)
+    jacobian = np.empty((len(_PARAMETERS), tau.size if derivatives else 0))
+    x, jacobian = damped_swings(tau, scalars, gradients, points, point_gradients,
+                                np.empty(tau.size), jacobian)
+    return x, jacobian if derivatives else None
 
 
 def _gradients(*jets):
     """The gradients of ``jets`` as columns, shape (5, len(jets))."""
-    return np.column_stack([np.broadcast_to(j.g, (len(_PARAMETERS),)) for j in jets])
+    columns = np.empty((len(_PARAMETERS), len(jets)))
+    for i, jet in enumerate(jets):
+        columns[:, i] = jet.g
+    return columns
 
 
 def _constant(value, tau, derivatives):

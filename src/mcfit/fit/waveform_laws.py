@@ -34,6 +34,8 @@ NUISANCE = ("theta0", "omega", "e0", "e1")
 # error at the end of a long record is a few times the tolerance), within these limits.
 _ACCURACY = 1e-2
 _RTOL_LIMITS = (1e-11, 1e-7)
+# The rows of viscous_motion_jacobian's derivatives.
+_VELOCITY_ROWS = ("y0", "theta0", "omega", "b", "c")
 
 
 class AmplitudeWaveform:
@@ -132,13 +134,14 @@ class VelocityWaveform(AmplitudeWaveform):
     def _motion_jacobian(self, tau, p, moved):
         terms = dict(zip(self.terms, p[5:]))
         b, omega = terms.get("b", 0.0), p[2]
-        clipped = b > 0.99 * omega  # beta held below omega
         x, by = viscous_motion_jacobian(tau, p[0], p[1], omega, min(b, 0.99 * omega),
                                         terms.get("c", 0.0))
-        rows = {"y0": by[0], "theta0": by[1],
-                "omega": by[2] + 0.99 * by[3] if clipped else by[2],
-                "b": 0.0 * by[3] if clipped else by[3], "c": by[4]}
-        return x, np.array([rows[self.names[i]] for i in moved])
+        if b > 0.99 * omega:  # beta held below omega
+            by[2] += 0.99 * by[3]
+            by[3] *= 0.0
+        rows = [_VELOCITY_ROWS.index(self.names[i]) for i in moved]
+        # The rows in place where they are the first ones (no copy).
+        return x, by[:len(rows)] if rows == list(range(len(rows))) else by[rows]
 
 
 class EquationOfMotionWaveform(AmplitudeWaveform):
