@@ -175,3 +175,19 @@ def test_the_kernel_compiles_once():
     from mcfit.viscous_kernels import damped_swings
 
     assert len(damped_swings.signatures) == 1
+
+
+@pytest.mark.parametrize("c", [0.0, 0.05])
+def test_times_in_any_order_give_each_time_its_own_motion(c):
+    """The half-cycles are counted to the latest time, not the last one given: the
+    samples of a permutation are the permuted samples, and times before the first given
+    one (as [5, 0]) are no reads past the turning points."""
+    tau = np.linspace(0.0, 5.0, 501)
+    order = np.random.default_rng(3).permutation(tau.size)
+    x, jacobian = viscous_motion_jacobian(tau, 1.0, 0.0, 2 * math.pi, 0.3, c)
+    x_moved, jacobian_moved = viscous_motion_jacobian(tau[order], 1.0, 0.0, 2 * math.pi,
+                                                      0.3, c)
+    assert np.array_equal(x_moved, x[order])
+    assert np.array_equal(jacobian_moved, jacobian[:, order])
+    pair = viscous_motion_jacobian(np.array([5.0, 0.0]), 1.0, 0.0, 2 * math.pi, 0.3, c)
+    assert np.array_equal(pair[0], x[[-1, 0]]) and np.array_equal(pair[1], jacobian[:, [-1, 0]])

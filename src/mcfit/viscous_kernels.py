@@ -66,10 +66,18 @@ def damped_swings(tau, scalars, gradients, points, point_gradients, x, jacobian)
                     jacobian[r, i] = total
             continue
         quotient = (t - first_end) / half
-        whole = math.floor(quotient)
-        if quotient - whole < 1e-9:  # maybe rounded up to a whole number: numpy's floor
-            whole = int((t - first_end) // half)  # division, exact (slower)
-        k = min(whole, last)
+        if last < 0 or not quotient < last:  # the last turning point's half-cycle on
+            k = last
+            if k < 0:  # no turning point to start from: t is not finite
+                x[i] = math.nan
+                if derivatives:
+                    for r in range(5):
+                        jacobian[r, i] = math.nan
+                continue
+        else:
+            k = math.floor(quotient)
+            if quotient - k < 1e-9:  # maybe rounded up to a whole number: numpy's floor
+                k = int((t - first_end) // half)  # division, exact (slower)
         since = t - first_end - k * half
         at = points[k]
         sign = 1.0 if at > 0 else (-1.0 if at < 0 else 0.0)

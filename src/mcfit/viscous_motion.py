@@ -101,10 +101,11 @@ def _motion(tau, y0, theta0, omega, beta, c, derivatives):
     first = Jet(first.v % math.pi or math.pi, first.g)
     first_end = first / damped
     half = math.pi / damped
-    if np.any(tau > first_end.v):
+    end = float(np.max(tau[np.isfinite(tau)], initial=0.0))  # times in any order
+    if end > first_end.v:
         x1 = centre + (beta * first_end * -1.0).exp() * (start * first.cos()
                                                          + slope * first.sin())
-        count = int(math.ceil((tau[-1] - first_end.v) / half.v)) + 1
+        count = int(math.ceil((end - first_end.v) / half.v)) + 1
         points, point_gradients = _turning_points(x1, offset, (beta * half * -1.0).exp(),
                                                   count)
     else:
