@@ -1,5 +1,9 @@
-"""Helpers for the tests that watch mcfit's worker processes."""
+"""Helpers for the tests that run mcfit in other processes: its workers, and fresh
+interpreters that show what an import or a call loads."""
 
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 
@@ -10,3 +14,13 @@ def children(pid):
                 for p in (task / "children").read_text().split()]
     except OSError:
         return []
+
+
+def python_words(code, **environment):
+    """What ``code`` prints in a fresh interpreter (with ``environment`` added), split
+    into words; its exit status must be 0."""
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            env={**os.environ, "PYTHONWARNINGS": "ignore", **environment},
+                            timeout=600)
+    assert result.returncode == 0, result.stderr
+    return result.stdout.split()

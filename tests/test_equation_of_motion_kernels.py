@@ -3,10 +3,7 @@ independent tight solve from Q = 1.5 to 100, its dense output, its failures, whe
 is loaded and how its cache falls back."""
 
 import math
-import os
 import shutil
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +14,7 @@ import mcfit.equation_of_motion as equation_of_motion
 from mcfit.bench.reference_motion import integrate
 from mcfit.equation_of_motion import PARAMETERS, motion_with_sensitivities
 from mcfit.viscous_motion import viscous_motion_jacobian
+from process_tools import python_words
 from test_equation_of_motion import _central_differences
 
 OMEGA = 2 * math.pi
@@ -110,14 +108,6 @@ def test_too_many_steps_leave_nan_from_where_the_integration_stopped(monkeypatch
     np.testing.assert_array_equal(x[~lost], full[~lost])
 
 
-def _run(code, **environment):
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                            env={**os.environ, "PYTHONWARNINGS": "ignore", **environment},
-                            timeout=600)
-    assert result.returncode == 0, result.stderr
-    return result.stdout.split()
-
-
 def test_a_record_that_keeps_its_turning_points_does_not_load_numba(tmp_path):
     """A high-Q linear record (auto keeps the turning-point fit) and no numba; integrating
     a motion then loads it. The record is made here: its closed form is compiled."""
@@ -135,7 +125,7 @@ from mcfit.equation_of_motion import motion_with_sensitivities
 motion_with_sensitivities(t[:10], 1.0, 0.0, 6.283, 0.1)
 print("numba" in sys.modules)
 """
-    assert _run(code) == ["turning-points", "False", "True"]
+    assert python_words(code) == ["turning-points", "False", "True"]
 
 
 MOTION = """
@@ -178,7 +168,7 @@ def test_without_any_writable_cache_folder_it_compiles_and_agrees(read_only_pack
                                                                    tmp_path):
     blocked = tmp_path / "blocked"
     blocked.write_text("a file, so nothing can be created under it")
-    out = _run(MOTION, PYTHONPATH=str(read_only_package), PYTHONDONTWRITEBYTECODE="1",
+    out = python_words(MOTION, PYTHONPATH=str(read_only_package), PYTHONDONTWRITEBYTECODE="1",
                NUMBA_CACHE_DIR=str(blocked / "numba"), HOME=str(blocked / "home"),
                XDG_CACHE_HOME=str(blocked / "cache"))
     assert out[:2] == _expected() and out[2] == "NullCache"
@@ -191,7 +181,7 @@ def test_a_read_only_package_caches_in_the_users_folder(read_only_package, tmp_p
     environment = {"PYTHONPATH": str(read_only_package), "PYTHONDONTWRITEBYTECODE": "1",
                    "XDG_CACHE_HOME": str(cache), "HOME": str(tmp_path)}
     environment = {**environment, "NUMBA_CACHE_DIR": ""}
-    first, again = _run(MOTION, **environment), _run(MOTION, **environment)
+    first, again = python_words(MOTION, **environment), python_words(MOTION, **environment)
     assert first[:2] == again[:2] == _expected()
     assert first[2] == again[2] == "FunctionCache" and first[3] == "0" and again[3] != "0"
     assert list((cache / "numba").rglob("*_integrate*.nbi"))
