@@ -321,16 +321,21 @@ def auto_start(fit, error):
     at most _EXPLAINED standard errors: the averaged law cannot show such a term (at
     Q = 5 with b and c, a = 16 standard errors against 57 of bias). The terms left out
     are still estimated, and fitted where they may matter: a real term dropped costs a
-    second fit, a spurious one kept costs a fit of a model not reported."""
+    second fit, a spurious one kept costs a fit of a model not reported. Where the chain
+    fails (the fitted law's own waveform has too few turning points), the fit's choice
+    is not trusted: the waveform fit starts with the candidate whose start lies nearest
+    the record (at Q = 3 with b and a Coulomb stop, b + c, not the fit's a + c)."""
     from mcfit.fit.waveform import WaveformStart
     from mcfit.model_error import noise_stderr
 
     start = WaveformStart.of_fit(fit)
     if error.how != "chain":
         return start
+    if not all(map(math.isfinite, error.z.values())):
+        return replace(start, model=None)
     stderr = noise_stderr(fit)
-    kept = "".join(k for k in fit.selection.terms if not math.isfinite(error.z[k])
-                   or fit.values[k] / stderr[k] - error.z[k] > _EXPLAINED)
+    kept = "".join(k for k in fit.selection.terms
+                   if fit.values[k] / stderr[k] - error.z[k] > _EXPLAINED)
     return replace(start, model=kept) if kept else start
 
 

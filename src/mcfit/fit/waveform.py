@@ -90,11 +90,12 @@ class WaveformFit(DecayFit):
 class WaveformStart:
     """Where a waveform fit starts: each model's start values (y0, a, b, c), the model
     fitted first (the turning-point fit's choice; its values start a model without its
-    own), the frequency, and the turning points (times, amplitudes, sigma) at which the
-    result gives the law's amplitude."""
+    own; None: the model whose start lies nearest the record), the frequency, and the
+    turning points (times, amplitudes, sigma) at which the result gives the law's
+    amplitude."""
 
     values: dict
-    model: str
+    model: str | None
     omega: float
     t: np.ndarray = field(repr=False)
     y: np.ndarray = field(repr=False)
@@ -172,11 +173,18 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     else is fitted then), its values may sit in a false minimum, and the first model is
     fitted from the turning-point fit's values too, the better fit kept. Where the first
     fit misfits, it is fitted again from the turning-point values at the undamped
-    frequency the crests imply (:func:`_retuned`)."""
+    frequency the crests imply (:func:`_retuned`); without a start model (None), the
+    candidates start there, and the first is the one whose start lies nearest the record
+    (:func:`_first_model`; at Q = 3 with a Coulomb stop, the crests' frequency is 11 %
+    below omega; from there a + c at Q = 5.3 went to a false minimum that the start at the
+    crests' own frequency avoids)."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
-    tw, xw, t0, nuisance = _window(t, x, turning, start.omega)
+    undamped = undamped_frequency(turning, start.omega)
+    # With no model to start from (auto_start's distrust), at the undamped frequency.
+    tw, xw, t0, nuisance = _window(t, x, turning,
+                                   start.omega if start.model or forced else undamped)
     noise = sample_noise(xw) if rival is None else rival.law.noise  # the same window
     starts = start.values
     models = (offered if forced is None
@@ -184,9 +192,10 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     waveforms = {model: kind(tw, xw, t0, terms_of(model), noise) for model in models}
     vectors = {model: _start_vector(starts.get(model, starts.get(start.model)), nuisance,
                                     model) for model in models}
-    first = forced or (start.model if start.model in models else _largest(models))
     bar, bar_fits = None, False
-    if rival is not None:
+    if rival is None:
+        first = forced or _first_model(start.model, waveforms, vectors)
+    else:
         first = forced or rival.selection.model
         own, vectors[first] = vectors[first], rival.candidates[first].internal
         bar = rival.aicc + FORM_TIE + _DECISIVE
@@ -204,7 +213,7 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
             candidate, solution, vectors = _retuned(
                 waveforms[first], candidate, solution, vectors,
                 own if rival is not None else vectors[first],
-                undamped_frequency(turning, start.omega))
+                undamped)
         candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
     selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
     if selection.model == first and solution is not None and candidates[first] is candidate:
@@ -272,6 +281,22 @@ def _start_vector(values, nuisance, model):
     return np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
 
 
+def _first_model(model, waveforms, vectors):
+    """``model`` where the form offers it, the largest model where it does not, and where
+    it is None the model whose waveform at its start vector in ``vectors`` lies nearest
+    the record (least chi-square; of equal starts, the fewest terms)."""
+    if model is not None:
+        return model if model in waveforms else _largest(waveforms)
+    found = {}  # chi-square by start vector (a model with a term at 0 starts as another)
+    for name in sorted(waveforms, key=lambda m: len(terms_of(m))):
+        law, begin = waveforms[name], vectors[name]
+        key = tuple(begin[:5]) + tuple((k, v) for k, v in zip(law.terms, begin[5:]) if v)
+        if key not in found:
+            law.typical = _typical(begin, law.terms)
+            found[key] = (float(np.sum(law.residual(begin) ** 2)), name)
+    return min(found.values())[1]
+
+
 def _largest(models):
     return max(models, key=lambda m: len(terms_of(m)))
 
@@ -281,11 +306,11 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
 
     The others are estimated from the best fitted one (:func:`_estimates`) and fitted
     where the estimate may change the choice (:func:`_may_matter`), again from each new
-    best, until none may: a model that adds terms to the best, or has no sliding
-    friction, from its estimate (a small step; a smooth motion), any other from its start
-    in ``vectors`` (from an estimate that drops terms, a fit with sliding friction stopped
-    at a kink of the motion, where the swing that stops changes). A fitted model that adds
-    terms to a new best is refitted where it stopped above its estimate
+    best, until none may: one at a time, the lowest estimated AICc first, where the best
+    describes the record (a model whose estimate only sets a term of the next best at 0,
+    as a + b + c's from b at Q = 2, is then not fitted), all at once where it misfits
+    (its estimates are far off); each as :func:`_fit_estimated` does. A fitted model that
+    adds terms to a new best is refitted where it stopped above its estimate
     (:func:`_refit_stuck`). Where the best misfits, the largest model is fitted from its
     own start (an estimate far from a misfit may miss a better minimum).
 
@@ -299,24 +324,38 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
     reference = None
     while True:
         best = fitted[forced] if forced else min(fitted.values(), key=lambda c: c.aicc)
-        if best is reference:
-            if top in fitted or not _misfits(best, n_points):
+        if best is not reference:
+            reference = best
+            estimates = _estimates(waveforms[top], best, set(waveforms) - {best.model})
+            _refit_stuck(fitted, estimates, best, waveforms, n_points)
+            unfitted = [e for m, e in estimates.items() if m not in fitted]
+            if (bar is not None and min([best.aicc] + [e.aicc for e in unfitted]) > bar
+                    and (bar_fits or top in fitted or not _misfits(best, n_points))):
                 break
-            fitted[top] = _ranked(waveforms[top], vectors[top], _RANKING)[0]
+        pending = sorted((e for m, e in estimates.items()
+                          if m not in fitted and _may_matter(e, best, n_points)),
+                         key=lambda e: e.aicc)
+        misfits = _misfits(best, n_points)
+        for estimate in pending[:None if misfits else 1]:
+            fitted[estimate.model] = _fit_estimated(waveforms, vectors, estimate, best)
+        if pending:
             continue
-        reference = best
-        estimates = _estimates(waveforms[top], best, set(waveforms) - {best.model})
-        _refit_stuck(fitted, estimates, best, waveforms, n_points)
-        unfitted = {m: e for m, e in estimates.items() if m not in fitted}
-        if (bar is not None and min([best.aicc] + [e.aicc for e in unfitted.values()]) > bar
-                and (bar_fits or top in fitted or not _misfits(best, n_points))):
+        if top in fitted or not misfits:
             break
-        for model, estimate in unfitted.items():
-            if _may_matter(estimate, best, n_points):
-                near = set(best.terms) <= set(estimate.terms) or "c" not in estimate.terms
-                begin = estimate.internal if near else vectors[model]
-                fitted[model] = _ranked(waveforms[model], begin, _RANKING)[0]
+        fitted[top] = _ranked(waveforms[top], vectors[top], _RANKING)[0]
     return {m: fitted.get(m) or estimates[m] for m in waveforms}
+
+
+def _fit_estimated(waveforms, vectors, estimate, best):
+    """The ranking fit of the model of ``estimate`` (from ``best``): from the estimate
+    where the model adds terms to the best or has no sliding friction (a small step; a
+    smooth motion), else from its start in ``vectors`` (from an estimate that drops
+    terms, a fit with sliding friction stopped at a kink of the motion, where the swing
+    that stops changes)."""
+    model = estimate.model
+    if set(best.terms) <= set(estimate.terms) or "c" not in estimate.terms:
+        return _from_estimate(waveforms[model], estimate)
+    return _ranked(waveforms[model], vectors[model], _RANKING)[0]
 
 
 def _refit_stuck(fitted, estimates, best, waveforms, n_points):
@@ -325,9 +364,31 @@ def _refit_stuck(fitted, estimates, best, waveforms, n_points):
     start stuck at a kink of the motion), keeping the lower of the two."""
     for model in [m for m in fitted if set(best.terms) < set(terms_of(m))]:
         if _statistic(fitted[model], estimates[model], n_points) > _NEGLIGIBLE:
-            again = _ranked(waveforms[model], estimates[model].internal, _RANKING)[0]
+            again = _from_estimate(waveforms[model], estimates[model])
             if again.chi_square < fitted[model].chi_square:
                 fitted[model] = again
+
+
+def _from_estimate(waveform, estimate):
+    """The candidate ``estimate`` fitted by the ranking fit: the estimate itself,
+    evaluated, where the Gauss-Newton step from it (within the bounds) would lower
+    chi-square by less than the ranking's tolerance, as the fit's first step would (one
+    evaluation instead of two or more); else fitted from there."""
+    begin = estimate.internal
+    waveform.typical = _typical(begin, waveform.terms)
+    lower, upper = waveform.bounds = _bounds(begin, waveform.terms)
+    p = np.clip(begin, lower, upper)
+    residual = waveform.residual(p)
+    orthogonal, triangle = np.linalg.qr(waveform.jacobian(p))
+    projected = orthogonal.T @ residual
+    step = optimize.lsq_linear(triangle, -projected, bounds=(lower - p, upper - p),
+                               method="bvls").x
+    gain = projected @ projected - np.sum((triangle @ step + projected) ** 2)
+    chi_square = float(residual @ residual)
+    if gain > _RANKING["ftol"] * chi_square:
+        return _ranked(waveform, begin, _RANKING)[0]
+    return _candidate(waveform.terms, waveform.t.size, p, chi_square, True, 1,
+                      np.linalg.pinv(triangle.T @ triangle))
 
 
 def _misfits(candidate, n_points):

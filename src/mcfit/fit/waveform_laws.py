@@ -56,7 +56,9 @@ class AmplitudeWaveform:
 
     @typical.setter
     def typical(self, value):
-        self._typical, self._kept = value, None  # a kept Jacobian had the old steps
+        if not np.array_equal(value, getattr(self, "_typical", None)):
+            self._kept = None  # a kept Jacobian had the old steps
+        self._typical = value
 
     def covariance(self, parameters):
         """Unscaled (J^T J)^-1 (pseudo-inverse)."""
