@@ -676,3 +676,24 @@ def test_a_model_that_only_sets_a_term_of_the_new_best_at_zero_is_not_fitted(mon
     _every_candidate_fitted(monkeypatch)
     full = fit_both_forms(t, x, turning, start)
     _same_choice(quick, full)
+
+
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 2**32 - 1), columns=st.integers(1, 8), extra=st.integers(0, 3),
+       bound=st.sampled_from(["none", "lower", "both"]))
+def test_bounded_least_squares_is_scipys_bounded_solution(seed, columns, extra, bound):
+    """The unbounded solution where no bound binds, else scipy's bounded-variable least
+    squares: the same minimum as bvls alone, within its bounds, for any system."""
+    from scipy import optimize
+
+    rng = np.random.default_rng(seed)
+    matrix = rng.standard_normal((columns + extra, columns)) * rng.uniform(0.1, 10, columns)
+    target = rng.standard_normal(columns + extra)
+    lower = (np.full(columns, -np.inf) if bound == "none"
+             else rng.uniform(-1.0, 0.5, columns))
+    upper = rng.uniform(0.6, 2.0, columns) if bound == "both" else np.full(columns, np.inf)
+    ours = waveform._bounded_least_squares(matrix, target, lower, upper)
+    theirs = optimize.lsq_linear(matrix, target, bounds=(lower, upper), method="bvls").x
+    assert np.all(ours >= lower - 1e-12) and np.all(ours <= upper + 1e-12)
+    ours_cost, theirs_cost = (float(np.sum((matrix @ s - target) ** 2)) for s in (ours, theirs))
+    assert ours_cost == pytest.approx(theirs_cost, rel=1e-9, abs=1e-12)
