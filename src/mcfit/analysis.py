@@ -322,9 +322,10 @@ def auto_start(fit, error):
     Q = 5 with b and c, a = 16 standard errors against 57 of bias). The terms left out
     are still estimated, and fitted where they may matter: a real term dropped costs a
     second fit, a spurious one kept costs a fit of a model not reported. Where the chain
-    fails (the fitted law's own waveform has too few turning points), the fit's choice
-    is not trusted: the waveform fit starts with the candidate whose start lies nearest
-    the record (at Q = 3 with b and a Coulomb stop, b + c, not the fit's a + c)."""
+    fails (an infinite predicted bias: the fitted law's own waveform gives too few
+    turning points, or their fit fails), the fit's choice is not trusted: the waveform
+    fit starts with the candidate whose start lies nearest the record (at Q = 3 with b
+    and a Coulomb stop, b + c, not the fit's a + c)."""
     from mcfit.fit.waveform import WaveformStart
     from mcfit.model_error import noise_stderr
 

@@ -57,7 +57,7 @@ _DECISIVE = 60.0
 _NEGLIGIBLE = 1.0
 # Evaluations of the second form's first fit after which its candidates are estimated
 # against the bar the first form sets (rank_form's rival; _glimpse).
-_GLIMPSE = 4
+_GLIMPSE = 3
 # Selected models of two forms whose AICc differ by no more than this cannot be told
 # apart (Burnham and Anderson: a difference above 10 leaves the worse model no support).
 FORM_TIE = 10.0
@@ -176,8 +176,8 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     frequency the crests imply (:func:`_retuned`); without a start model (None), the
     candidates start there, and the first is the one whose start lies nearest the record
     (:func:`_first_model`; at Q = 3 with a Coulomb stop, the crests' frequency is 11 %
-    below omega; from there a + c at Q = 5.3 went to a false minimum that the start at the
-    crests' own frequency avoids)."""
+    below omega). With a start model the candidates start at the crests' frequency: from
+    the undamped one, a + c at Q = 5.3 went to a false minimum."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
@@ -306,11 +306,15 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
 
     The others are estimated from the best fitted one (:func:`_estimates`) and fitted
     where the estimate may change the choice (:func:`_may_matter`), again from each new
-    best, until none may: one at a time, the lowest estimated AICc first, where the best
-    describes the record (a model whose estimate only sets a term of the next best at 0,
-    as a + b + c's from b at Q = 2, is then not fitted), all at once where it misfits
-    (its estimates are far off); each as :func:`_fit_estimated` does. A fitted model that
-    adds terms to a new best is refitted where it stopped above its estimate
+    best, until none may; each as :func:`_fit_estimated` does. Where every such model
+    adds terms to a best that describes the record within its noise (a small step from
+    a good fit: the estimates are close), one at a time, the lowest estimated AICc first,
+    so that a model whose estimate only sets a term of the next best at 0 (a + b + c's
+    from b + c at Q = 2 with b alone) is not fitted; else all at once (from a first fit
+    in another minimum the estimates are far off: one at a time, b + c went unfitted at
+    Q = 4 and 5 with a noise of 1e-2 of y0 from c, reduced chi-square 1.9, and from
+    a + c, and a stuck a + b + c was reported 6-35 standard errors off). A fitted model
+    that adds terms to a new best is refitted where it stopped above its estimate
     (:func:`_refit_stuck`). Where the best misfits, the largest model is fitted from its
     own start (an estimate far from a misfit may miss a better minimum).
 
@@ -336,7 +340,9 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
                           if m not in fitted and _may_matter(e, best, n_points)),
                          key=lambda e: e.aicc)
         misfits = _misfits(best, n_points)
-        for estimate in pending[:None if misfits else 1]:
+        close = _within_noise(best, n_points) and all(
+            set(best.terms) < set(e.terms) for e in pending)
+        for estimate in pending[:1] if close else pending:
             fitted[estimate.model] = _fit_estimated(waveforms, vectors, estimate, best)
         if pending:
             continue
@@ -372,8 +378,10 @@ def _refit_stuck(fitted, estimates, best, waveforms, n_points):
 def _from_estimate(waveform, estimate):
     """The candidate ``estimate`` fitted by the ranking fit: the estimate itself,
     evaluated, where the Gauss-Newton step from it (within the bounds) would lower
-    chi-square by less than the ranking's tolerance, as the fit's first step would (one
-    evaluation instead of two or more); else fitted from there."""
+    chi-square by less than the ranking's tolerance (the ranking fit from there takes
+    that step and stops: two evaluations; the estimate's chi-square is within the
+    tolerance of it, its values within about 0.1 standard errors, 0.02 on the records
+    tried); else fitted from there."""
     begin = estimate.internal
     waveform.typical = _typical(begin, waveform.terms)
     lower, upper = waveform.bounds = _bounds(begin, waveform.terms)
@@ -388,6 +396,13 @@ def _from_estimate(waveform, estimate):
         return _ranked(waveform, begin, _RANKING)[0]
     return _candidate(waveform.terms, waveform.t.size, p, chi_square, True, 1,
                       np.linalg.pinv(triangle.T @ triangle))
+
+
+def _within_noise(candidate, n_points):
+    """Whether ``candidate`` describes the record within its noise: reduced chi-square
+    within 5 of its standard deviations sqrt(2/dof) of 1 (a misfit is far above that)."""
+    dof = n_points - candidate.n_params
+    return dof > 0 and candidate.chi_square / dof <= 1.0 + 5.0 * math.sqrt(2.0 / dof)
 
 
 def _misfits(candidate, n_points):
