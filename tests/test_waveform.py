@@ -729,3 +729,19 @@ def test_bounded_least_squares_is_scipys_bounded_solution(seed, columns, extra, 
     ours_cost, theirs_cost = (float(np.sum((matrix @ step - target) ** 2))
                               for step in (ours, theirs))
     assert ours_cost == pytest.approx(theirs_cost, rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize("form, terms", [("amplitude", ("b",)), ("amplitude", ("b", "c")),
+                                         ("amplitude", ("a", "b", "c")),
+                                         ("velocity", ("b", "c")), ("velocity", ("a", "b"))])
+def test_chi_square_from_the_motion_alone_is_that_of_the_residuals(form, terms):
+    """A law's chi-square without its Jacobian (the nearest start's ranking) is the sum
+    of the squared residuals its fit sees, in every form (phase plane, closed forms,
+    integrated), a Coulomb stop inside the record."""
+    t = np.linspace(0.0, 5.0, 1501)
+    x = phase_plane_motion(t, 1.0, 0.3, OMEGA, 0.0, 0.6, 0.15)[0] + 0.01
+    law = waveform.FORMS[form][0](t, x, 0.0, terms, 1e-3)
+    values = {"a": 0.05, "b": 0.55, "c": 0.12}
+    p = np.array([0.98, 0.25, 1.01 * OMEGA, 0.02, -1e-3] + [values[k] for k in terms])
+    law.typical = waveform._typical(p, law.terms)
+    assert law.chi_square(p) == pytest.approx(np.sum(law.residual(p) ** 2), rel=1e-12)

@@ -293,7 +293,7 @@ def _first_model(model, waveforms, vectors):
         key = tuple(begin[:5]) + tuple((k, v) for k, v in zip(law.terms, begin[5:]) if v)
         if key not in found:
             law.typical = _typical(begin, law.terms)
-            found[key] = (float(np.sum(law.residual(begin) ** 2)), name)
+            found[key] = (law.chi_square(begin), name)
     return min(found.values())[1]
 
 
