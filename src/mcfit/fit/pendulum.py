@@ -128,11 +128,11 @@ def geometric_factors(theta0):
 
 
 def _arithmetic_geometric_mean(theta):
-    """The arithmetic-geometric mean M of 1 and k' = cos(theta/2), so that K(k) = pi/(2M),
+    """The arithmetic-geometric mean M of 1 and k' = |cos(theta/2)|, so that K(k) = pi/(2M),
     and (E - k'**2 K)/K = k**2/2 - sum over n >= 1 of 2**(n-1) c_n**2, with
     c_(n+1) = c_n**2/(4 a_(n+1)), c_0 = k = sin(theta/2) (Abramowitz and Stegun 17.6):
     no cancellation as k -> 0, and several times faster than scipy's R_D."""
-    mean, geometric = np.ones_like(theta), np.cos(0.5 * theta)
+    mean, geometric = np.ones_like(theta), np.abs(np.cos(0.5 * theta))
     c_squared = np.sin(0.5 * theta) ** 2
     difference, power = 0.5 * c_squared, 1.0
     for _ in range(30):  # quadratic convergence: 6 steps at 3.1 rad
@@ -253,9 +253,10 @@ def _amplitude_solution(t, y0, a, b, c, sensitivities=True):
         return theta, jacobian
     if np.any(coefficients < 0) or not y0 < math.pi:
         return _amplitude_solution_by_ode(t, y0, coefficients, sensitivities)
-    if not np.any(coefficients > 0):  # no damping: theta stays at y0
-        theta[:], jacobian[:, 0] = y0, 1.0
-        jacobian[:, 1:] = -t[:, None] * _rate_terms(y0)[::-1]
+    rate, h = _rate(coefficients, np.array(y0))
+    if rate * end <= 1e-12 * y0:  # next to no damping: first order in it, to 1e-12
+        theta[:], jacobian[:, 0] = y0 - rate * t, 1.0
+        jacobian[:, 1:] = -t[:, None] * h[::-1]
         return theta, jacobian
     edges, rates, times, terms = _panels(y0, coefficients, end, sensitivities)
     panel = np.maximum(np.searchsorted(times, t, side="right") - 1, 0)
