@@ -42,10 +42,11 @@ def integrate(force, omega, x0, t_end, rate, *, mu=0.0, v0=0.0, restoring=None):
             return y[1]
 
         reversal.terminal, reversal.direction = True, -sense
-        # A step off rest: the velocity's zero at the start is not a reversal.
+        # A step off rest: the velocity's zero at the start is not a reversal (no longer
+        # than what is left of the record: a reversal may come just before its end).
         solution = solve_ivp(rhs, (now, t_end), state, method="DOP853", rtol=1e-12,
                              atol=1e-14 * max(1.0, abs(x0)), events=reversal,
-                             dense_output=True, first_step=1e-9)
+                             dense_output=True, first_step=min(1e-9, t_end - now))
         end = solution.t[-1]
         inside = (t >= now) & (t <= end)
         if np.any(inside):
