@@ -32,9 +32,10 @@ def test_the_mixed_batch_is_the_issues():
     assert first[2] / first[0] == pytest.approx(math.exp(-math.pi / q), rel=0.05)
 
 
-def test_a_tiny_run_reports_every_record(monkeypatch, capsys):
+@pytest.mark.parametrize("kind", ["b", "viscous", "pendulum"])
+def test_a_tiny_run_reports_every_record(monkeypatch, capsys, kind):
     monkeypatch.setattr(waveform_speed, "WAVEFORM_QS", (10,))
-    monkeypatch.setattr(waveform_speed, "WAVEFORM_MIXES", ("b",))
+    monkeypatch.setattr(waveform_speed, "WAVEFORM_MIXES", (kind,))
     monkeypatch.setattr("sys.argv", ["-", json.dumps({"records": 2, "runs": 1,
                                                        "seed": 1})])
     waveform_speed.main()
@@ -42,7 +43,27 @@ def test_a_tiny_run_reports_every_record(monkeypatch, capsys):
     assert [row[1] for row in found["mixed"]] == ["b", "ab"]
     assert all(row[4] > 0 and row[5] > 0 for row in found["mixed"])
     (q, mix, seconds), = found["waveform"]
-    assert (q, mix) == (10, "b") and seconds > 0
+    assert (q, mix) == (10, kind) and seconds > 0
+
+
+@pytest.mark.parametrize("kind", ["viscous", "pendulum"])
+def test_the_other_forms_records_are_what_they_say(kind):
+    """10^4 samples decaying at Q = 10: the viscous oscillator's crests fall by
+    exp(-pi/Q) a cycle, and the pendulum swings from 0.8 rad and is fitted by its own
+    equation of motion to b = omega/(2*Q) within 3 standard errors."""
+    from mcfit.bench.waveform_speed import _waveform_fit_as_auto, q_record
+
+    t, x = q_record(10, kind, 1)
+    assert t.size == waveform_speed.SAMPLES
+    crests = find_turning_points(t, x)
+    fit, args = _waveform_fit_as_auto(t, x, crests, kind == "pendulum")
+    if kind == "viscous":
+        first = np.abs(crests.y[:6])
+        assert first[2] / first[0] == pytest.approx(math.exp(-math.pi / 10), rel=0.02)
+        return
+    assert np.max(np.abs(x)) == pytest.approx(waveform_speed.PENDULUM_RELEASE, abs=0.01)
+    result = fit(*args)
+    assert abs(result.values["b"] - math.pi / 10) < 3 * result.stderr["b"]
 
 
 def test_the_report_names_each_target_and_its_verdict():

@@ -745,3 +745,31 @@ def test_chi_square_from_the_motion_alone_is_that_of_the_residuals(form, terms):
     p = np.array([0.98, 0.25, 1.01 * OMEGA, 0.02, -1e-3] + [values[k] for k in terms])
     law.typical = waveform._typical(p, law.terms)
     assert law.chi_square(p) == pytest.approx(np.sum(law.residual(p) ** 2), rel=1e-12)
+
+
+def test_after_a_misfit_the_second_form_starts_from_the_start_model(monkeypatch):
+    """A linear viscous oscillator at Q = 3: the amplitude forms misfit (reduced
+    chi-square 3) and select a + b + c; the velocity forms start from the turning-point
+    fit's b (closed form), not from a + b + c (drag integrated, 25 evaluations), and end
+    where they did: b in the velocity forms, the same values."""
+    from mcfit.analysis import auto_start
+    from mcfit.bench.waveform_speed import q_record
+    from mcfit.model_error import averaged_law_bias
+
+    t, x = q_record(3, "viscous", 2026)
+    turning = find_turning_points(t, x)
+    fit = fit_turning_points(turning)
+    start = auto_start(fit, averaged_law_bias(t, turning, fit))
+    fits = []
+    fitter = waveform._fitted_as_reported
+    monkeypatch.setattr(waveform, "_fitted_as_reported", lambda law, begin: fits.append(
+        (type(law).__name__, law.terms)) or fitter(law, begin))
+    ours = fit_both_forms(t, x, turning, start)
+    assert [f for f in fits if not f[0].startswith(("Amplitude", "Hysteretic"))] == [
+        ("VelocityWaveform", "b")] * 2  # from the rival's values and from its own
+    monkeypatch.setattr(waveform, "_first_after", lambda rival, model, n: rival.selection.model)
+    theirs = fit_both_forms(t, x, turning, start)
+    assert (ours.model, ours.damping_form) == (theirs.model, theirs.damping_form) == (
+        "b", "velocity")
+    assert abs(ours.values["b"] - theirs.values["b"]) < 1e-3 * theirs.stderr["b"]
+    assert abs(ours.values["b"] - math.pi / 3) < 3 * ours.stderr["b"]

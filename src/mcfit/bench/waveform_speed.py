@@ -12,8 +12,11 @@ waveform (issue 28), in one child process with one BLAS thread, CPU time.
   as auto runs it) on records of 10^4 samples at Q = 2, 3, 5, 8, 10
   (b alone, and b with a Coulomb tenth of the first decay rate), long enough for the
   amplitude to fall to 1e-3 of y0 (at least 8 cycles), started where auto starts it
-  (:func:`mcfit.analysis.auto_start`): CPU milliseconds, the best of
-  ``config.waveform_runs`` runs.
+  (:func:`mcfit.analysis.auto_start`); and in the other forms the issue names, from an
+  independent integration (:mod:`mcfit.bench.reference_motion`): a linear viscous
+  oscillator (the velocity forms' b; ``fit_both_forms`` too) and a pendulum released at
+  0.8 rad with viscous damping (its own equation of motion, as ``--pendulum`` fits it):
+  CPU milliseconds, the best of ``config.waveform_runs`` runs.
 
 Turning-point cost per cycle is the cycles section's. Nothing here asserts a time; a
 target not met is printed as NOT MET.
@@ -42,7 +45,9 @@ __all__ = ["MIXES", "WAVEFORM_QS", "WaveformSpeed", "mixed_record", "q_record",
 MIXES = {"b": (0.0, 1.0, 0.0), "ab": (0.3, 0.7, 0.0), "bc": (0.0, 0.9, 0.1),
          "abc": (0.2, 0.7, 0.1)}
 WAVEFORM_QS = (2, 3, 5, 8, 10)
-WAVEFORM_MIXES = ("b", "bc")
+# Eq. 20.55's mixes (MIXES), then the other forms' records (_other_form_record).
+WAVEFORM_MIXES = ("b", "bc", "viscous", "pendulum")
+PENDULUM_RELEASE = 0.8  # rad
 SAMPLES = 10_000
 CYCLES = 40
 LOW_Q = (5.0, 8.0)
@@ -100,14 +105,30 @@ def mixed_record(index, count, seed):
 
 def q_record(q, mix, seed):
     """A record of :data:`SAMPLES` samples at ``q`` for the waveform fit's timing,
-    decaying to 1e-3 of y0 (at least 8 cycles, at most 40), noise 1e-3."""
+    decaying to 1e-3 of y0 (at least 8 cycles, at most 40), noise 1e-3: Eq. 20.55 with
+    the ``mix`` of :data:`MIXES`, or "viscous" or "pendulum"."""
     from mcfit.bench.methods import record_duration
     from mcfit.motion import simulate_record
 
     duration = record_duration(q)
+    rng = np.random.default_rng([seed, 28, int(10 * q)])
+    if mix not in MIXES:
+        t, x = _other_form_record(q, mix, duration)
+        return t, x + 1e-3 * rng.standard_normal(t.size)
     return simulate_record(*_law(q, mix), 1.0, 1.0, duration, (SAMPLES - 1) / duration,
-                           method="accurate", noise=1e-3,
-                           rng=np.random.default_rng([seed, 28, int(10 * q)]))
+                           method="accurate", noise=1e-3, rng=rng)
+
+
+def _other_form_record(q, mix, duration, omega=2 * math.pi):
+    """(t, x) of a linear viscous oscillator from rest at 1 ("viscous") or a viscous
+    pendulum from rest at PENDULUM_RELEASE ("pendulum"), rate omega/(2*q), by the
+    reference integration."""
+    from mcfit.bench import reference_motion
+
+    beta, rate = omega / (2 * q), SAMPLES / duration
+    if mix == "viscous":
+        return reference_motion.viscous(beta, omega, 1.0, duration, rate)
+    return reference_motion.pendulum(beta, omega, PENDULUM_RELEASE, duration, rate)
 
 
 def run_waveform_speed(config: BenchConfig = QUICK, progress=None) -> WaveformSpeed:
@@ -144,8 +165,7 @@ def _cpu(function, *args, **kwargs):
 def main():
     """Child process: measure the spec in ``sys.argv[1]`` (JSON: records, runs, seed) and
     print the rows as JSON."""
-    from mcfit.analysis import analyse_record, auto_start, fit_both_forms, fit_turning_points
-    from mcfit.model_error import averaged_law_bias
+    from mcfit.analysis import analyse_record
     from mcfit.turning import find_turning_points
 
     spec = json.loads(sys.argv[1])
@@ -160,20 +180,38 @@ def main():
         points_s, _ = _cpu(analyse_record, record, method="turning-points")
         method = None if auto is None or auto.fit is None else auto.fit.method
         mixed.append((q, mix, noise, method, auto_s, points_s))
-    waveform = []
+    waveform, warm = [], set()
     for q in WAVEFORM_QS:
         for mix in WAVEFORM_MIXES:
             t, x = q_record(q, mix, seed)
             seconds, turning = _cpu(find_turning_points, t, x)
-            if turning is None:  # too few turning points to start from
+            fit = turning and _cpu(_waveform_fit_as_auto, t, x, turning, mix == "pendulum")[1]
+            if not fit:  # too few turning points, or no law fitted to them, to start from
                 waveform.append((q, mix, None))
                 continue
-            fit = fit_turning_points(turning)
-            start = auto_start(fit, averaged_law_bias(t, turning, fit))
-            best = min(_cpu(fit_both_forms, t, x, turning, start)[0]
-                       for _ in range(spec["runs"]))
-            waveform.append((q, mix, best))
+            if mix not in warm:  # the first fit of a kind loads its compiled kernels
+                warm.add(mix)
+                _cpu(fit[0], *fit[1])
+            times = [_cpu(fit[0], *fit[1])[0] for _ in range(spec["runs"])]
+            waveform.append((q, mix, None if None in times else min(times)))
     print(json.dumps({"mixed": mixed, "waveform": waveform}))
+
+
+def _waveform_fit_as_auto(t, x, turning, pendulum):
+    """(the waveform fit, its arguments) as auto runs it on the record: both forms from
+    auto's start, or a pendulum's equation of motion from its law's fit."""
+    from functools import partial
+
+    from mcfit.analysis import auto_start, fit_both_forms, fit_turning_points
+    from mcfit.fit.waveform import WaveformStart, fit_waveform
+    from mcfit.fit.waveform_laws import PendulumWaveform
+    from mcfit.model_error import averaged_law_bias
+
+    fit = fit_turning_points(turning, pendulum=pendulum)
+    if pendulum:
+        return partial(fit_waveform, form="velocity", kind=PendulumWaveform), (
+            t, x, turning, WaveformStart.of_fit(fit))
+    return fit_both_forms, (t, x, turning, auto_start(fit, averaged_law_bias(t, turning, fit)))
 
 
 # --------------------------------------------------------------------------- report
@@ -218,8 +256,9 @@ def format_waveform_speed(result: WaveformSpeed) -> str:
     refused = sum(r[4] is None or r[5] is None for r in result.mixed)
     if refused:
         lines.append(f"  ({refused} records refused by a method, left out)")
-    lines += ["", "  the waveform fit (both forms, as auto runs it) from auto's start, "
-              "CPU ms, best of "
+    lines += ["", "  the waveform fit as auto runs it (Eq. 20.55's b and b + c and a viscous "
+              "oscillator: both forms from auto's start; a pendulum released at "
+              f"{PENDULUM_RELEASE:g} rad: its equation of motion), CPU ms, best of "
               f"{result.config.waveform_runs}:",
               f"  {'Q':>4}" + "".join(f"{mix:>10}" for mix in WAVEFORM_MIXES)]
     for q in WAVEFORM_QS:
