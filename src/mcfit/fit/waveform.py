@@ -200,7 +200,8 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
         first = forced or _first_after(rival, start.model, tw.size)
         own, vectors[first] = vectors[first], rival.candidates[first].internal
         bar = rival.aicc + FORM_TIE + _DECISIVE
-        bar_fits = not _misfits(rival.candidates[rival.selection.model], tw.size)
+        bar_fits = first == rival.selection.model and not _misfits(
+            rival.candidates[rival.selection.model], tw.size)
     candidates = solution = None
     if bar_fits and forced is None:
         vectors[first], candidates = _glimpse(waveforms, first, vectors[first], bar)
@@ -224,12 +225,13 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
 
 def _first_after(rival, model, n_points):
     """The second form's first model: the one ``rival`` selected where that describes the
-    record within its noise, else ``model`` (the start's; a choice from a misfit is no
-    better than its estimates: on a viscous oscillator at Q = 3 the amplitude forms
-    select a + b + c, whose drag is integrated, 15 and 10 evaluations from two starts,
-    where b is the answer)."""
+    record within its noise, else ``model`` (the start's, where it has a term; a choice
+    from a misfit is no better than its estimates: on a viscous oscillator at Q = 3 the
+    amplitude forms select a + b + c, whose drag is integrated, 15 and 10 evaluations
+    from two starts, where b is the answer). From the start's model the second form is
+    fitted from both starts, not glimpsed (rank_form)."""
     chosen = rival.selection.model
-    if model is None or model not in rival.candidates or _within_noise(
+    if model in (None, NONE) or model not in rival.candidates or _within_noise(
             rival.candidates[chosen], n_points):
         return chosen
     return model
