@@ -167,8 +167,8 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     """The candidate step of :func:`fit_waveform` in ``form``. With ``rival`` (another
     form's :class:`RankedForm`), the first model fitted is the one it selected where that
     describes the record within its noise, else the start's (:func:`_first_after`), from
-    the rival's values, and the step stops where no candidate can come within :data:`FORM_TIE` of
-    its AICc (the candidates are then only those fitted so far and estimates): where the
+    the rival's values, and the step stops where no candidate can come within
+    :data:`FORM_TIE` of its AICc (the candidates are then only those fitted so far and estimates): where the
     rival describes the record within its noise, already after a few steps of the first
     fit (:func:`_glimpse`); where it does not, or where the model is forced (nothing
     else is fitted then), its values may sit in a false minimum, and the first model is
