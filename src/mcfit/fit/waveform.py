@@ -164,21 +164,21 @@ class RankedForm:
 
 def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced=None,
               form="amplitude", kind=None, rival=None):
-    """The candidate step of :func:`fit_waveform` in ``form``. With ``rival`` (another
-    form's :class:`RankedForm`), the first model fitted is the one it selected where that
+    """The candidate step of :func:`fit_waveform` in ``form``. With ``rival`` (another form's
+    :class:`RankedForm`), the first model fitted is the one it selected where that
     describes the record within its noise, else the start's (:func:`_first_after`), from
     the rival's values, and the step stops where no candidate can come within
-    :data:`FORM_TIE` of its AICc (the candidates are then only those fitted so far and estimates): where the
-    rival describes the record within its noise, already after a few steps of the first
-    fit (:func:`_glimpse`); where it does not, or where the model is forced (nothing
-    else is fitted then), its values may sit in a false minimum, and the first model is
-    fitted from the turning-point fit's values too, the better fit kept. Where the first
-    fit misfits, it is fitted again from the turning-point values at the undamped
-    frequency the crests imply (:func:`_retuned`); without a start model (None), the
-    candidates start there, and the first is the one whose start lies nearest the record
-    (:func:`_first_model`; at Q = 3 with a Coulomb stop, the crests' frequency is 11 %
-    below omega). With a start model the candidates start at the crests' frequency: from
-    the undamped one, a + c at Q = 5.3 went to a false minimum."""
+    :data:`FORM_TIE` of its AICc (the candidates are then only those fitted so far and
+    estimates): where the rival describes the record within its noise, already after a few
+    steps of the first fit (:func:`_glimpse`); where it does not, or where the model is
+    forced (nothing else is fitted then), its values may sit in a false minimum, and the
+    first model is fitted from the turning-point fit's values too, the better fit kept.
+    Where the first fit misfits, it is fitted again from the turning-point values at the
+    undamped frequency the crests imply (:func:`_retuned`); without a start model (None),
+    the candidates start there, and the first is the one whose start lies nearest the
+    record (:func:`_first_model`; at Q = 3 with a Coulomb stop, the crests' frequency is
+    11 % below omega). With a start model the candidates start at the crests' frequency:
+    from the undamped one, a + c at Q = 5.3 went to a false minimum."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
