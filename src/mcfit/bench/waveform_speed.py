@@ -185,14 +185,16 @@ def main():
         for mix in WAVEFORM_MIXES:
             t, x = q_record(q, mix, seed)
             seconds, turning = _cpu(find_turning_points, t, x)
-            fit = turning and _cpu(_waveform_fit_as_auto, t, x, turning, mix == "pendulum")[1]
-            if not fit:  # too few turning points, or no law fitted to them, to start from
+            prepared = turning and _cpu(_waveform_fit_as_auto, t, x, turning,
+                                        mix == "pendulum")[1]
+            if not prepared:  # too few turning points, or no law fitted to them
                 waveform.append((q, mix, None))
                 continue
+            fit, args = prepared
             if mix not in warm:  # the first fit of a kind loads its compiled kernels
                 warm.add(mix)
-                _cpu(fit[0], *fit[1])
-            times = [_cpu(fit[0], *fit[1])[0] for _ in range(spec["runs"])]
+                _cpu(fit, *args)
+            times = [_cpu(fit, *args)[0] for _ in range(spec["runs"])]
             waveform.append((q, mix, None if None in times else min(times)))
     print(json.dumps({"mixed": mixed, "waveform": waveform}))
 
