@@ -747,13 +747,8 @@ def test_chi_square_from_the_motion_alone_is_that_of_the_residuals(form, terms):
     assert law.chi_square(p) == pytest.approx(np.sum(law.residual(p) ** 2), rel=1e-12)
 
 
-@pytest.mark.parametrize("q", [3, 8])
-def test_after_a_misfit_the_second_form_starts_from_the_start_model(monkeypatch, q):
-    """A linear viscous oscillator at Q = 3 and 8: the amplitude forms describe it
-    outside its noise (reduced chi-square 3.2 and 1.6) and select a + b + c; the velocity
-    forms start from the turning-point fit's b (closed form), not from a + b + c (drag
-    integrated, 25 evaluations at Q = 3), from both starts (no glimpse from a start
-    model), and end where they did: b in the velocity forms, the same values."""
+def _viscous_start(q):
+    """(t, x, turning points, auto's start) of the bench's linear viscous oscillator."""
     from mcfit.analysis import auto_start
     from mcfit.bench.waveform_speed import q_record
     from mcfit.model_error import averaged_law_bias
@@ -761,7 +756,47 @@ def test_after_a_misfit_the_second_form_starts_from_the_start_model(monkeypatch,
     t, x = q_record(q, "viscous", 2026)
     turning = find_turning_points(t, x)
     fit = fit_turning_points(turning)
-    start = auto_start(fit, averaged_law_bias(t, turning, fit))
+    return t, x, turning, auto_start(fit, averaged_law_bias(t, turning, fit))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("q", [3, 8])
+def test_where_only_the_velocity_forms_describe_their_first_fit_they_go_first(
+        monkeypatch, q):
+    """A linear viscous oscillator at Q = 3 and 8: the amplitude forms' first fit, b, is
+    outside the noise (reduced chi-square 3.3 and 1.8), the velocity forms' b within it.
+    The velocity forms are ranked first and the amplitude forms close on estimates from
+    their b: nothing else is fitted in the amplitude forms (before: b again, a + b + c
+    and a + b), b is fitted once in each form, and the result is that of fitting every
+    candidate of both forms in full."""
+    t, x, turning, start = _viscous_start(q)
+    fits = []
+    for name in ("_ranked", "_fitted_as_reported", "_from_estimate"):
+        fitter = getattr(waveform, name)
+        monkeypatch.setattr(waveform, name, lambda law, *args, fitter=fitter: fits.append(
+            (type(law).__name__, law.terms)) or fitter(law, *args))
+    ours = fit_both_forms(t, x, turning, start)
+    assert [f for f in fits if f[0].startswith(("Amplitude", "Hysteretic"))] == [
+        ("HystereticWaveform", "b")]
+    assert fits.count(("VelocityWaveform", "b")) == 1
+    assert "about" in ours.damping_form_reason  # the amplitude forms' AICc is estimated
+    _every_candidate_fitted(monkeypatch)
+    full = fit_both_forms(t, x, turning, start)
+    _same_choice(ours, full)
+    assert (ours.model, ours.damping_form) == ("b", "velocity")
+
+
+@pytest.mark.parametrize("q", [3, 8])
+def test_after_a_misfit_the_second_form_starts_from_the_start_model(monkeypatch, q):
+    """With the amplitude forms ranked first (as where the velocity forms' first fit does
+    not describe the record either), a linear viscous oscillator at Q = 3 and 8: the
+    amplitude forms describe it outside its noise (reduced chi-square 3.2 and 1.6) and
+    select a + b + c; the velocity forms start from the turning-point fit's b (closed
+    form), not from a + b + c (drag integrated, 25 evaluations at Q = 3), from both starts
+    (no glimpse from a start model), and end where they did: b in the velocity forms, the
+    same values."""
+    monkeypatch.setattr(waveform, "_may_not_lead", lambda opened: False)
+    t, x, turning, start = _viscous_start(q)
     fits = []
     fitter = waveform._fitted_as_reported
     monkeypatch.setattr(waveform, "_fitted_as_reported", lambda law, begin: fits.append(
@@ -801,3 +836,44 @@ def test_the_second_form_never_starts_from_no_damping(monkeypatch):
     assert (ours.model, ours.damping_form) == (theirs.model, theirs.damping_form)
     assert ours.damping_form != "amplitude"
     assert _selected(ours).aicc == pytest.approx(_selected(theirs).aicc, abs=1e-6)
+
+
+def test_a_model_dropping_only_terms_the_best_can_do_without_starts_from_its_estimate(
+        monkeypatch):
+    """The bench's pendulum at Q = 3 (viscous only) starts from the turning-point fit's
+    a + b, whose waveform fit ends at a = 2e-5: b + c drops only that a, and is fitted
+    from its estimate in one evaluation, not from the turning-point values (9), with the
+    same answer."""
+    from mcfit.bench.waveform_speed import _waveform_fit_as_auto, q_record
+
+    t, x = q_record(3, "pendulum", 2026)
+    turning = find_turning_points(t, x)
+    fit, args = _waveform_fit_as_auto(t, x, turning, True)
+    assert args[3].model == "ab"
+    fits = []
+    ranked = waveform._ranked
+    monkeypatch.setattr(waveform, "_ranked", lambda law, *rest: fits.append(law.terms)
+                        or ranked(law, *rest))
+    ours = fit(*args)
+    assert fits == []
+    assert ours.candidates[[c.model for c in ours.candidates].index("bc")].evaluations == 1
+    monkeypatch.setattr(waveform, "_dispensable", lambda *rest: False)
+    theirs = fit(*args)
+    assert "bc" in fits
+    assert ours.model == theirs.model == "b"
+    assert abs(ours.values["b"] - theirs.values["b"]) < 1e-3 * theirs.stderr["b"]
+
+
+def test_a_term_is_dispensable_only_where_dropping_it_costs_less_than_negligible():
+    """Less than _NEGLIGIBLE in the likelihood-ratio statistic, and never where the
+    estimate without the term lies below the best (a quadratic model gone wrong; its
+    chi-square may even be negative, which once raised a math domain error)."""
+    def candidate(terms, chi_square):
+        p = np.ones(5 + len(terms))
+        return waveform._candidate(terms, 100, p, chi_square, True, 0, np.eye(p.size),
+                                   estimated=True)
+
+    best, estimate = candidate("ab", 100.0), candidate("bc", 100.0)
+    for without, expected in ((100.4, True), (102.0, False), (99.0, False), (-5.0, False)):
+        estimates = {"b": candidate("b", without)}
+        assert waveform._dispensable(best, estimate, estimates, 100) is expected

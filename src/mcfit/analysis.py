@@ -419,16 +419,13 @@ def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     """The waveform fit in the form of the damping forces the record supports: Eq. 20.55's
     amplitude forms or the velocity forms (:data:`mcfit.fit.waveform.FORMS`), by the AICc
     of the model each selects; ``damping_form`` is "cannot tell" within
-    :data:`mcfit.fit.waveform.FORM_TIE`, and the lower one is reported. The second form
-    starts from the first's choice and stops where it cannot come within the tie."""
-    from mcfit.fit.waveform import FORM_TIE, FORMS, rank_form, report_form
+    :data:`mcfit.fit.waveform.FORM_TIE`, and the lower one is reported. One form is
+    ranked first (the velocity forms where they alone describe the record at their first
+    fit, else the amplitude forms: :func:`mcfit.fit.waveform.rank_forms`); the other
+    starts from its choice and stops where it cannot come within the tie."""
+    from mcfit.fit.waveform import FORM_TIE, rank_forms, report_form
 
-    ranked = {}
-    for form, (_, offered) in FORMS.items():
-        if forced is None or forced in offered:
-            ranked[form] = rank_form(t, x, turning, start, criterion=criterion,
-                                     forced=forced, form=form,
-                                     rival=next(iter(ranked.values()), None))
+    ranked = rank_forms(t, x, turning, start, criterion=criterion, forced=forced)
     if not ranked:
         raise FitError(f"no form of the waveform fit has the model {forced!r}",
                        option="model")

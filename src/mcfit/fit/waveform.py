@@ -21,7 +21,7 @@ at order 1/Q; :data:`FORMS` lists them, each form's model and Jacobian a law of
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import fft, linalg, optimize
@@ -41,7 +41,7 @@ from mcfit.turning.common import HALF_CYCLE_SPACING
 from mcfit.viscous_motion import coulomb_force
 
 __all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
-           "rank_form", "report_form", "fit_candidate"]
+           "OpenedForm", "open_form", "rank_form", "rank_forms", "report_form", "fit_candidate"]
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
 # The models fitted after the first are ranked, not reported (the one selected is
 # refitted in full): fitted until chi-square falls by less than this share in a step,
@@ -162,65 +162,181 @@ class RankedForm:
         return self.candidates[self.selection.model].aicc
 
 
-def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced=None,
-              form="amplitude", kind=None, rival=None):
-    """The candidate step of :func:`fit_waveform` in ``form``. With ``rival`` (another form's
-    :class:`RankedForm`), the first model fitted is the one it selected where that
-    describes the record within its noise, else the start's (:func:`_first_after`), from
-    the rival's values, and the step stops where no candidate can come within
-    :data:`FORM_TIE` of its AICc (the candidates are then only those fitted so far and
-    estimates): where the rival describes the record within its noise, already after a few
-    steps of the first fit (:func:`_glimpse`); where it does not, or where the model is
-    forced (nothing else is fitted then), its values may sit in a false minimum, and the
-    first model is fitted from the turning-point fit's values too, the better fit kept.
-    Where the first fit misfits, it is fitted again from the turning-point values at the
-    undamped frequency the crests imply (:func:`_retuned`); without a start model (None),
-    the candidates start there, and the first is the one whose start lies nearest the
-    record (:func:`_first_model`; at Q = 3 with a Coulomb stop, the crests' frequency is
-    11 % below omega). With a start model the candidates start at the crests' frequency:
-    from the undamped one, a + c at Q = 5.3 went to a false minimum."""
+@dataclass(frozen=True)
+class OpenedForm:
+    """One form's laws on the record's window (``waveforms``: model -> law; ``law``:
+    terms -> a new one), each model's start vector, the undamped frequency the crests
+    imply and, once fitted, the first model's fit from its start (``first``, a
+    Candidate, with lmfit's ``solution``)."""
+
+    form: str
+    law: object = field(repr=False)
+    waveforms: dict = field(repr=False)
+    vectors: dict = field(repr=False)
+    undamped: float
+    first: object = None
+    solution: object = field(default=None, repr=False)
+
+    @property
+    def n_points(self) -> int:
+        """The samples in the window."""
+        return next(iter(self.waveforms.values())).t.size
+
+    @property
+    def noise(self) -> float:
+        """The window's sample noise, in the record's units."""
+        return next(iter(self.waveforms.values())).noise
+
+
+def open_form(t, x, turning, start, *, form="amplitude", kind=None, forced=None, noise=None,
+              fit=True):
+    """``form``'s :class:`OpenedForm` on the record, with the sample ``noise`` given
+    (another form's, on the same window) or estimated, and with ``fit`` its first model
+    fitted from its start: ``forced``, else the start's model, else (None) the one whose
+    start lies nearest the record (:func:`_first_model`). Without a start model
+    (auto_start's distrust) the laws start at the undamped frequency, else at the crests'
+    (from the undamped one, a + c at Q = 5.3 went to a false minimum)."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
     undamped = undamped_frequency(turning, start.omega)
-    # With no model to start from (auto_start's distrust), at the undamped frequency.
     tw, xw, t0, nuisance = _window(t, x, turning,
                                    start.omega if start.model or forced else undamped)
-    noise = sample_noise(xw) if rival is None else rival.law.noise  # the same window
+    noise = sample_noise(xw) if noise is None else noise
     starts = start.values
     models = (offered if forced is None
               else tuple(m for m in starts if m in offered))
     waveforms = {model: kind(tw, xw, t0, terms_of(model), noise) for model in models}
     vectors = {model: _start_vector(starts.get(model, starts.get(start.model)), nuisance,
                                     model) for model in models}
-    bar, bar_fits = None, False
+    opened = OpenedForm(form, lambda terms: kind(tw, xw, t0, terms, noise), waveforms,
+                        vectors, undamped)
+    if not fit:
+        return opened
+    first = forced or _first_model(start.model, waveforms, vectors)
+    candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
+    return replace(opened, first=candidate, solution=solution)
+
+
+def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None):
+    """{form: RankedForm} for each form of :data:`FORMS` that offers ``forced`` (every
+    form without it): one ranked alone, then the others against it (:func:`rank_form`'s
+    rival). The amplitude forms go first, unless their first fit does not describe the
+    record within its noise and the velocity forms' first fit does, and better: then the
+    velocity forms go first, and the amplitude forms close on estimates from their first
+    fit (on a viscous oscillator at Q = 3, the amplitude forms' b misfits; ranking them
+    first cost a second b, a + b + c and a + b, about 30 ms)."""
+    forms = [form for form, (_, offered) in FORMS.items() if forced is None or forced in offered]
+    if not forms:
+        return {}
+    lead = forms[0]
+    opened = {lead: open_form(t, x, turning, start, form=lead, forced=forced)}
+    if forced is None and len(forms) > 1 and _may_not_lead(opened[lead]):
+        other = opened[forms[1]] = open_form(t, x, turning, start, form=forms[1],
+                                             noise=opened[lead].noise)
+        if (_within_noise(other.first, other.n_points)
+                and other.first.aicc < opened[lead].first.aicc):
+            lead = forms[1]
+    ranked = {lead: rank_form(t, x, turning, start, criterion=criterion, forced=forced,
+                              form=lead, opened=opened[lead])}
+    for form in forms:
+        if form != lead:
+            ranked[form] = rank_form(t, x, turning, start, criterion=criterion,
+                                     forced=forced, form=form, rival=ranked[lead],
+                                     opened=opened.get(form))
+    return ranked
+
+
+def _may_not_lead(opened):
+    """Whether another form may describe the record where ``opened``'s first fit does not
+    (no damping has no form)."""
+    first = opened.first
+    return first.model != NONE and not _within_noise(first, opened.n_points)
+
+
+def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced=None,
+              form="amplitude", kind=None, rival=None, opened=None):
+    """The candidate step of :func:`fit_waveform` in ``form``, from ``opened``
+    (:func:`open_form`; opened here without it). Alone, from the first fit; where it
+    misfits, fitted again from the turning-point values at the undamped frequency the
+    crests imply (:func:`_retuned`; at Q = 3 with a Coulomb stop, the crests' frequency
+    is 11 % below omega). With ``rival`` (another form's :class:`RankedForm`), the first
+    model is the one it selected where that describes the record within its noise, else
+    the start's (:func:`_first_after`), from the rival's values, and the step stops where
+    no candidate can come within :data:`FORM_TIE` of its AICc (the candidates are then
+    only those fitted so far and estimates): where the rival describes the record within
+    its noise, already after a few steps of the first fit (:func:`_glimpse`), or on
+    estimates from the opened first fit where that is of the same model; where it does
+    not, or where the model is forced (nothing else is fitted then), its values may sit in
+    a false minimum, and the first model is fitted from the turning-point fit's values
+    too (or taken from ``opened``), the better fit kept."""
+    if opened is None:
+        opened = open_form(t, x, turning, start, form=form, kind=kind, forced=forced,
+                           noise=None if rival is None else rival.law.noise,
+                           fit=rival is None)
     if rival is None:
-        first = forced or _first_model(start.model, waveforms, vectors)
-    else:
-        first = forced or _first_after(rival, start.model, tw.size)
-        own, vectors[first] = vectors[first], rival.candidates[first].internal
-        bar = rival.aicc + FORM_TIE + _DECISIVE
-        bar_fits = first == rival.selection.model and not _misfits(
-            rival.candidates[rival.selection.model], tw.size)
-    candidates = solution = None
+        return _ranked_alone(opened, start.model, criterion, alpha, forced)
+    return _ranked_after(opened, start.model, rival, criterion, alpha, forced)
+
+
+def _ranked_alone(opened, model, criterion, alpha, forced):
+    """:func:`rank_form` without a rival, ``model`` the start's."""
+    if opened.first is None:
+        first = forced or _first_model(model, opened.waveforms, opened.vectors)
+        candidate, solution = _fitted_as_reported(opened.waveforms[first],
+                                                  opened.vectors[first])
+        opened = replace(opened, first=candidate, solution=solution)
+    candidate, solution, vectors = opened.first, opened.solution, opened.vectors
+    if _misfits(candidate, opened.n_points):
+        candidate, solution, vectors = _retuned(
+            opened.waveforms[candidate.model], candidate, solution, vectors,
+            vectors[candidate.model], opened.undamped)
+    candidates = _fitted_candidates(opened.waveforms, vectors, candidate, forced)
+    return _selected_form(opened, candidates, candidate, solution, criterion, alpha, forced)
+
+
+def _ranked_after(opened, model, rival, criterion, alpha, forced):
+    """:func:`rank_form` against ``rival``, ``model`` the start's."""
+    waveforms, n_points = opened.waveforms, opened.n_points
+    first = forced or _first_after(rival, model, n_points)
+    own, vectors = opened.vectors[first], dict(opened.vectors)
+    vectors[first] = rival.candidates[first].internal
+    bar = rival.aicc + FORM_TIE + _DECISIVE
+    bar_fits = first == rival.selection.model and not _misfits(
+        rival.candidates[rival.selection.model], n_points)
+    opening = None
+    if opened.first is not None and opened.first.model == first:
+        opening = opened.first, opened.solution
+    candidates = candidate = solution = None
     if bar_fits and forced is None:
-        vectors[first], candidates = _glimpse(waveforms, first, vectors[first], bar)
+        if opening is None:
+            vectors[first], candidates = _glimpse(waveforms, first, vectors[first], bar)
+        else:
+            candidate, solution = opening
+            closed = _closed(waveforms, candidate, bar)
+            candidates = closed and {**closed, first: candidate}
     if candidates is None:
-        begins = [vectors[first]]
-        if rival is not None and (forced or not bar_fits):  # a false minimum, maybe
-            begins.append(own)
-        candidate, solution = min((_fitted_as_reported(waveforms[first], begin)
-                                   for begin in begins), key=lambda fit: fit[0].chi_square)
-        if _misfits(candidate, tw.size):
-            candidate, solution, vectors = _retuned(
-                waveforms[first], candidate, solution, vectors,
-                own if rival is not None else vectors[first],
-                undamped)
+        if candidate is None:
+            fits = [_fitted_as_reported(waveforms[first], vectors[first])]
+            if forced or not bar_fits:  # a false minimum, maybe
+                fits.append(opening or _fitted_as_reported(waveforms[first], own))
+            candidate, solution = min(fits, key=lambda fit: fit[0].chi_square)
+        if _misfits(candidate, n_points):
+            candidate, solution, vectors = _retuned(waveforms[first], candidate, solution,
+                                                    vectors, own, opened.undamped)
         candidates = _fitted_candidates(waveforms, vectors, candidate, forced, bar, bar_fits)
-    selection = select_model(candidates, criterion, alpha, n_points=tw.size, forced=forced)
-    if selection.model == first and solution is not None and candidates[first] is candidate:
-        return RankedForm(form, selection, candidates, waveforms[first], solution)
-    return RankedForm(form, selection, candidates, kind(tw, xw, t0, selection.terms, noise))
+    return _selected_form(opened, candidates, candidate, solution, criterion, alpha, forced)
+
+
+def _selected_form(opened, candidates, candidate, solution, criterion, alpha, forced):
+    """The :class:`RankedForm` of ``candidates``, with the first fit's ``solution`` where
+    its ``candidate`` is selected."""
+    selection = select_model(candidates, criterion, alpha, n_points=opened.n_points,
+                             forced=forced)
+    if solution is not None and candidates[selection.model] is candidate:
+        return RankedForm(opened.form, selection, candidates,
+                          opened.waveforms[candidate.model], solution)
+    return RankedForm(opened.form, selection, candidates, opened.law(selection.terms))
 
 
 def _first_after(rival, model, n_points):
@@ -257,17 +373,22 @@ def _at_frequency(vector, omega):
 
 
 def _glimpse(waveforms, first, start, bar):
-    """(where a few steps of ``first``'s fit from ``start`` end, every candidate estimated
-    from there), the candidates None unless they show that no model of the form can come
-    below ``bar``: every estimate above it by more than twice what ``first`` is estimated
-    to gain still (an estimate from a point short of a minimum can fall short of what a
-    fit would reach)."""
+    """(where a few steps of ``first``'s fit from ``start`` end, :func:`_closed` from
+    there)."""
     partial = _ranked(waveforms[first], start, _TOLERANCES, _GLIMPSE)[0]
-    estimates = _estimates(waveforms[_largest(waveforms)], partial, set(waveforms))
-    gain = max(partial.aicc - estimates[first].aicc, 0.0)
+    return partial.internal, _closed(waveforms, partial, bar)
+
+
+def _closed(waveforms, reached, bar):
+    """Every candidate estimated from ``reached`` (a fit, finished or a few steps in), or
+    None unless the estimates show that no model of the form can come below ``bar``:
+    every one above it by more than twice what ``reached`` is estimated to gain still (an
+    estimate from a point short of a minimum can fall short of what a fit would reach)."""
+    estimates = _estimates(waveforms[_largest(waveforms)], reached, set(waveforms))
+    gain = max(reached.aicc - estimates[reached.model].aicc, 0.0)
     if min(e.aicc for e in estimates.values()) <= bar + 2 * gain:
-        return partial.internal, None
-    return partial.internal, estimates
+        return None
+    return estimates
 
 
 def report_form(ranked, start):
@@ -359,7 +480,8 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
         close = _within_noise(best, n_points) and all(
             set(best.terms) < set(e.terms) for e in pending)
         for estimate in pending[:1] if close else pending:
-            fitted[estimate.model] = _fit_estimated(waveforms, vectors, estimate, best)
+            fitted[estimate.model] = _fit_estimated(waveforms, vectors, estimate, best,
+                                                           estimates)
         if pending:
             continue
         if top in fitted or not misfits:
@@ -368,16 +490,28 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
     return {m: fitted.get(m) or estimates[m] for m in waveforms}
 
 
-def _fit_estimated(waveforms, vectors, estimate, best):
-    """The ranking fit of the model of ``estimate`` (from ``best``): from the estimate
-    where the model adds terms to the best or has no sliding friction (a small step; a
-    smooth motion), else from its start in ``vectors`` (from an estimate that drops
-    terms, a fit with sliding friction stopped at a kink of the motion, where the swing
-    that stops changes)."""
+def _fit_estimated(waveforms, vectors, estimate, best, estimates):
+    """The ranking fit of the model of ``estimate`` (from ``best``, as ``estimates``): from
+    the estimate where the model adds terms to the best, has no sliding friction (a
+    smooth motion) or drops only terms the best can do without (:func:`_dispensable`: a
+    small step), else from its start in ``vectors`` (from an estimate that drops terms, a
+    fit with sliding friction stopped at a kink of the motion, where the swing that stops
+    changes)."""
     model = estimate.model
-    if set(best.terms) <= set(estimate.terms) or "c" not in estimate.terms:
+    if ("c" not in estimate.terms or set(best.terms) <= set(estimate.terms)
+            or _dispensable(best, estimate, estimates, waveforms[model].t.size)):
         return _from_estimate(waveforms[model], estimate)
     return _ranked(waveforms[model], vectors[model], _RANKING)[0]
+
+
+def _dispensable(best, estimate, estimates, n_points):
+    """Whether the terms of ``best`` that ``estimate`` drops lower chi-square by less than
+    _NEGLIGIBLE (``estimates`` has best without them): within about a standard error of
+    0 (a pendulum at Q = 3 whose a + b fit ends at a = 2e-5, against b + c)."""
+    kept = "".join(k for k in best.terms if k in estimate.terms) or NONE
+    without = estimates.get(kept)
+    return (without is not None and without.chi_square >= best.chi_square
+            and _statistic(without, best, n_points) < _NEGLIGIBLE)
 
 
 def _refit_stuck(fitted, estimates, best, waveforms, n_points):
