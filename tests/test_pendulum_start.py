@@ -4,17 +4,24 @@ without the terms that bias explains. Records from an integration that shares no
 mcfit (mcfit.bench.reference_motion) or the waveform bench's, fixed seeds."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from mcfit.analysis import (_pendulum_law_error, _pendulum_start, analyse_record,
-                            fit_turning_points)
+from mcfit.analysis import (
+    _pendulum_law_error,
+    _pendulum_start,
+    _without_steady_line,
+    analyse_record,
+    fit_turning_points,
+)
 from mcfit.bench import reference_motion as motion
 from mcfit.bench.waveform_speed import q_record
 from mcfit.fit.pendulum import fit_turning_points_of_pendulum
-from mcfit.fit.waveform import WaveformStart
+from mcfit.fit.waveform import WaveformStart, fit_waveform
+from mcfit.fit.waveform_laws import PendulumWaveform
 from mcfit.model_error import ModelError, pendulum_law_bias
 from mcfit.record import Record
 from mcfit.turning import find_turning_points
@@ -42,7 +49,8 @@ def test_the_bias_of_each_term_is_signed_and_in_the_noise_standard_errors():
     """Q = 5, a + b fitted to a viscous swing released at 0.8 rad: the chain's shift of
     each term, against the same turning-point fit of an independent integration, divided
     by the noise's standard errors (the reported ones over the root of the reduced
-    chi-square, 6.1 here). a is pushed up (the spurious drag), b down."""
+    chi-square, 6.1 here). The law reads the swing's geometry as drag: a's shift is
+    positive, b's negative."""
     t, x = q_record(5, "pendulum", 2026)
     turning = find_turning_points(t, x)
     fit = fit_turning_points(turning, pendulum=True)
@@ -90,8 +98,8 @@ def test_a_drag_the_bias_explains_is_left_out_of_the_start():
 
 def test_the_start_is_the_fit_s_model_where_the_chain_is_not_trusted():
     """A misfit (no chain run), a failed chain (infinite bias) or a term without a
-    predicted bias starts from the fit's own model, not the candidate nearest the record
-    (b + c here)."""
+    predicted bias starts from the fit's own model, not the candidate nearest the
+    record."""
     t, x = q_record(8, "pendulum", 2026)
     turning = find_turning_points(t, x)
     fit = fit_turning_points(turning, pendulum=True)
@@ -100,8 +108,8 @@ def test_the_start_is_the_fit_s_model_where_the_chain_is_not_trusted():
     failed = ModelError(dict.fromkeys(fit.selection.terms, math.inf), math.inf, None, "chain")
     assert _pendulum_start(fit, failed).model == fit.model
     # A term with no standard error has no predicted bias: no term is judged.
-    partial = ModelError({"a": 1e3, "b": 0.0}, 1e3, None, "chain")
-    assert _pendulum_start(fit, partial).model == fit.model
+    incomplete = ModelError({"a": 1e3, "b": 0.0}, 1e3, None, "chain")
+    assert _pendulum_start(fit, incomplete).model == fit.model
 
 
 def _drag_swing(q, drag_share, noise, seed):
@@ -121,12 +129,6 @@ def test_a_real_drag_is_kept_and_found_from_a_start_without_it():
     standard errors in the answer) is not explained by the bias and stays in the start
     and the answer, kappa within 3 standard errors; a waveform fit started from b alone
     still finds it, within 0.1 standard error of the same values."""
-    from dataclasses import replace
-
-    from mcfit.analysis import _without_steady_line
-    from mcfit.fit.waveform import fit_waveform
-    from mcfit.fit.waveform_laws import PendulumWaveform
-
     record, kappa = _drag_swing(10, 0.04, 3e-3, 2)
     turning = find_turning_points(record.t, record.x)
     fit = fit_turning_points(turning, pendulum=True)

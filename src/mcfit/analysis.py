@@ -364,8 +364,8 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
     than a (reported) standard error (:func:`mcfit.model_error.pendulum_law_bias`) or
     misfits, started from :func:`_pendulum_start`."""
     from mcfit.fit.pendulum_waveform import PendulumWaveformFit
-    from mcfit.fit.waveform_laws import PendulumWaveform
     from mcfit.fit.waveform import fit_waveform
+    from mcfit.fit.waveform_laws import PendulumWaveform
     from mcfit.model_error import misfit_scale
 
     if (record.kind != "waveform" or fit.domain != "time" or fit.omega is None
