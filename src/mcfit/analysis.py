@@ -361,20 +361,19 @@ def _reported_of(fit, waveform, said, motion, averaged_misfits):
 def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
     """``fit`` (the pendulum's averaged law on the turning points), or the waveform fit
     by the pendulum's equation of motion where the averaged law would be biased by more
-    than a standard error (:func:`mcfit.model_error.pendulum_law_bias`) or misfits."""
+    than a (reported) standard error (:func:`mcfit.model_error.pendulum_law_bias`) or
+    misfits, started from :func:`_pendulum_start`."""
     from mcfit.fit.pendulum_waveform import PendulumWaveformFit
+    from mcfit.fit.waveform import fit_waveform
     from mcfit.fit.waveform_laws import PendulumWaveform
-    from mcfit.fit.waveform import WaveformStart, fit_waveform
-    from mcfit.model_error import pendulum_law_bias
+    from mcfit.model_error import misfit_scale
 
     if (record.kind != "waveform" or fit.domain != "time" or fit.omega is None
             or not fit.selection.terms):
         return fit
-    dof = fit.n_points - 1 - len(fit.selection.terms)
-    misfits = not fit.noise_from_residuals and bool(misfit_warning(fit.reduced_chi_square,
-                                                                    dof))
-    # A misfit asks for the waveform fit whatever the bias: the chain is not run.
-    bias = math.nan if misfits else pendulum_law_bias(record.t, turning, fit, degrees)
+    error = _pendulum_law_error(record.t, turning, fit, degrees)
+    misfits = error is None
+    bias = math.nan if misfits else error.largest / misfit_scale(fit)
     said = (f"the averaged large-swing law misfits (reduced chi-square "
             f"{fit.reduced_chi_square:.3g})" if misfits else
             f"the averaged large-swing law's bias is predicted at {bias:.2g} standard errors")
@@ -382,12 +381,38 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
     kind = partial(PendulumWaveform, radians_per_unit=RADIANS_PER_DEGREE if degrees else 1.0)
     x = _without_steady_line(record.t, record.x, turning.steady_line)
-    waveform = fit_waveform(record.t, x, turning, WaveformStart.of_fit(fit),
+    waveform = fit_waveform(record.t, x, turning, _pendulum_start(fit, error),
                             criterion=criterion, forced=model, form="velocity", kind=kind)
     waveform = PendulumWaveformFit.of(replace(waveform, damping_form_reason=(
         "the pendulum's equation of motion, with the velocity forms of the damping (viscous, "
         "quadratic drag, sliding friction)")), fit)
     return _reported_of(fit, waveform, said, "the pendulum's equation of motion", misfits)
+
+
+def _pendulum_law_error(t, turning, fit, degrees):
+    """The pendulum's averaged-law ``fit``'s predicted bias
+    (:func:`mcfit.model_error.pendulum_law_bias`), or None where that law misfits: the
+    waveform fit is then asked for whatever the bias, and the chain is not run."""
+    from mcfit.model_error import pendulum_law_bias
+
+    dof = fit.n_points - 1 - len(fit.selection.terms)
+    if not fit.noise_from_residuals and misfit_warning(fit.reduced_chi_square, dof):
+        return None
+    return pendulum_law_bias(t, turning, fit, degrees)
+
+
+def _pendulum_start(fit, error):
+    """Where the pendulum's waveform fit starts: :func:`auto_start`'s start (the fit's
+    model less the terms the predicted bias ``error`` explains) where the chain gave every
+    term a finite bias; else the fit's own model, where the law misfits (``error`` None)
+    or the chain failed (the candidate nearest the record would start a large swing from
+    b + c, further from its answer than the fit's model)."""
+    from mcfit.fit.waveform import WaveformStart
+
+    z = {} if error is None else error.z
+    if set(z) != set(fit.selection.terms) or not all(map(math.isfinite, z.values())):
+        return WaveformStart.of_fit(fit)
+    return auto_start(fit, error)
 
 
 # How each value of ``method`` (mcfit.options.FIT_METHODS) chooses the reported fit: "auto"

@@ -19,8 +19,8 @@ import numpy as np
 from mcfit.hysteretic_motion import hysteretic_motion
 from mcfit.phase_plane import phase_plane_motion
 
-__all__ = ["LIMIT", "SCREEN_CONSTANT", "ModelError", "averaged_law_bias", "noise_stderr",
-           "pendulum_law_bias"]
+__all__ = ["LIMIT", "SCREEN_CONSTANT", "ModelError", "averaged_law_bias", "misfit_scale",
+           "noise_stderr", "pendulum_law_bias"]
 
 # The waveform fit is worth its cost where the averaged law's bias exceeds this many
 # standard errors of a coefficient.
@@ -60,9 +60,15 @@ def noise_stderr(fit):
     """The standard errors the noise alone gives: a misfit (reduced chi-square above 1,
     by which the reported errors are scaled) must not hide the averaged law's bias, which
     may be its very cause."""
-    reduced = fit.reduced_chi_square
-    scale = math.sqrt(reduced) if math.isfinite(reduced) and reduced > 1 else 1.0
+    scale = misfit_scale(fit)
     return {k: fit.stderr[k] / scale for k in fit.selection.terms}
+
+
+def misfit_scale(fit) -> float:
+    """How many times the noise's standard errors the reported ones are: the square root
+    of the reduced chi-square where it exceeds 1, else 1."""
+    reduced = fit.reduced_chi_square
+    return math.sqrt(reduced) if math.isfinite(reduced) and reduced > 1 else 1.0
 
 
 def _smallest_rate_q(fit):
@@ -113,11 +119,14 @@ def _fitted_values(turning, model) -> dict:
                             model=model)
 
 
-def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
-    """The largest shift, in standard errors, of the pendulum's averaged law's
-    coefficients fitted as the record's were to the noise-free swing of the fitted ones:
-    the pendulum's equation of motion sampled at the record's times, its turning points
-    found and the law of the same model fitted. inf where that chain fails."""
+def pendulum_law_bias(t, turning, fit, degrees=False) -> ModelError:
+    """Predicted bias of the pendulum's averaged-law ``fit`` of the swing ``t`` with
+    ``turning`` points: the shift of each kept coefficient (``z``, signed, in the noise's
+    standard errors as :func:`noise_stderr` gives them) when the law of the same model is
+    fitted as the record's was to the noise-free swing of the fitted coefficients (the
+    pendulum's equation of motion sampled at the record's times, its turning points
+    found). Terms with no standard error are left out; inf for every term where the chain
+    fails. ``q_min`` is None: no screen is used."""
     from mcfit.equation_of_motion import motion_with_sensitivities
     from mcfit.errors import McfitError
     from mcfit.fit.pendulum import fit_turning_points_of_pendulum
@@ -132,16 +141,17 @@ def pendulum_law_bias(t, turning, fit, degrees=False) -> float:
     swing, _ = motion_with_sensitivities(
         times - t0, v["y0"] * s, theta0, omega, v["b"], 0.75 * math.pi * v["a"] / (omega * s),
         0.5 * math.pi * omega * v["c"] * s, restoring="pendulum", rtol=1e-10)
+    terms = [k for k in fit.selection.terms if fit.stderr.get(k)]
     try:
         found = find_turning_points(times, turning.equilibrium_at(times) + swing / s,
                                     settle_noise=_positive(turning.noise_sigma))
         again = fit_turning_points_of_pendulum(found, found.used_sigma(), degrees,
-                                               model=fit.model)
+                                               model=fit.model).values
     except McfitError:
-        return math.inf
-    z = [abs(again.values[k] - v[k]) / fit.stderr[k] for k in fit.selection.terms
-         if fit.stderr.get(k)]
-    return max(z, default=math.inf)
+        return ModelError(dict.fromkeys(terms, math.inf), math.inf, None, "chain")
+    scale = misfit_scale(fit)
+    z = {k: (again[k] - v[k]) * scale / fit.stderr[k] for k in terms}
+    return ModelError(z, max(map(abs, z.values()), default=math.inf), None, "chain")
 
 
 def _positive(value):
