@@ -96,17 +96,39 @@ def test_a_drag_the_bias_explains_is_left_out_of_the_start():
     assert abs(analysis.fit.values["b"] - math.pi / 10) < 3 * analysis.fit.stderr["b"]
 
 
-def test_the_start_is_the_fit_s_model_where_the_chain_is_not_trusted():
-    """A misfit (no chain run), a failed chain (infinite bias) or a term without a
-    predicted bias starts from the fit's own model, not the candidate nearest the
-    record."""
+def test_where_the_law_misfits_the_start_is_the_nearest_of_its_models():
+    """The bench's Q = 8 pendulum (viscous only): the law misfits (reduced chi-square 8,
+    no chain run) and says a + b + c. The start is the model nearest the record among
+    those a + b + c contains, b (b + c's c starts at 2e-10, and counts as a term), at the
+    crests' frequency; from there the answer is the one from a + b + c."""
+    from functools import partial
+
+    from mcfit.fit.waveform import open_form
+
     t, x = q_record(8, "pendulum", 2026)
     turning = find_turning_points(t, x)
     fit = fit_turning_points(turning, pendulum=True)
-    assert _pendulum_law_error(t, turning, fit, False) is None  # reduced chi-square 8
-    assert _pendulum_start(fit, None).model == fit.model == "abc"
+    assert _pendulum_law_error(t, turning, fit, False) is None
+    assert fit.model == "abc"
+    start = _pendulum_start(fit, None)
+    assert start.model is None
+    assert set(start.among) == {"a", "b", "c", "ab", "ac", "bc", "abc"}
+    assert start.omega == fit.omega
+    fitted = partial(fit_waveform, t, x, turning, form="velocity", kind=PendulumWaveform)
+    opened = open_form(t, x, turning, start, form="velocity", kind=PendulumWaveform)
+    assert opened.first.model == "b"
+    ours, theirs = fitted(start), fitted(WaveformStart.of_fit(fit))
+    assert ours.model == theirs.model == "b"
+    assert abs(ours.values["b"] - theirs.values["b"]) < 1e-3 * theirs.stderr["b"]
+
+
+def test_where_the_chain_fails_the_start_is_the_fit_s_model():
+    """A failed chain (infinite bias) or a term without a predicted bias starts from the
+    fit's own model, not the candidate nearest the record."""
+    t, x = q_record(8, "pendulum", 2026)
+    fit = fit_turning_points(find_turning_points(t, x), pendulum=True)
     failed = ModelError(dict.fromkeys(fit.selection.terms, math.inf), math.inf, None, "chain")
-    assert _pendulum_start(fit, failed).model == fit.model
+    assert _pendulum_start(fit, failed).model == fit.model == "abc"
     # A term with no standard error has no predicted bias: no term is judged.
     incomplete = ModelError({"a": 1e3, "b": 0.0}, 1e3, None, "chain")
     assert _pendulum_start(fit, incomplete).model == fit.model

@@ -840,16 +840,21 @@ def test_the_second_form_never_starts_from_no_damping(monkeypatch):
 
 def test_a_model_dropping_only_terms_the_best_can_do_without_starts_from_its_estimate(
         monkeypatch):
-    """The bench's pendulum at Q = 3 (viscous only) starts from the turning-point fit's
+    """The bench's pendulum at Q = 3 (viscous only) started from the turning-point fit's
     a + b, whose waveform fit ends at a = 2e-5: b + c drops only that a, and is fitted
     from its estimate in one evaluation, not from the turning-point values (9), with the
     same answer."""
-    from mcfit.bench.waveform_speed import _waveform_fit_as_auto, q_record
+    from functools import partial
+
+    from mcfit.bench.waveform_speed import q_record
+    from mcfit.fit.waveform_laws import PendulumWaveform
 
     t, x = q_record(3, "pendulum", 2026)
     turning = find_turning_points(t, x)
-    fit, args = _waveform_fit_as_auto(t, x, turning, True)
-    assert args[3].model == "ab"
+    start = WaveformStart.of_fit(fit_turning_points(turning, pendulum=True))
+    assert start.model == "ab"
+    fit = partial(fit_waveform, form="velocity", kind=PendulumWaveform)
+    args = (t, x, turning, start)
     fits = []
     ranked = waveform._ranked
     monkeypatch.setattr(waveform, "_ranked", lambda law, *rest: fits.append(law.terms)

@@ -11,7 +11,7 @@ import numpy as np
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.diagnostics import misfit_warning
-from mcfit.fit.models import TERMS, terms_of
+from mcfit.fit.models import MODELS, NONE, TERMS, terms_of
 from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_turning_points_of_pendulum,
                                 large_swing_warning, names_degrees)
 from mcfit.options import check_fit_options
@@ -404,14 +404,21 @@ def _pendulum_law_error(t, turning, fit, degrees):
 def _pendulum_start(fit, error):
     """Where the pendulum's waveform fit starts: :func:`auto_start`'s start (the fit's
     model less the terms the predicted bias ``error`` explains) where the chain gave every
-    term a finite bias; else the fit's own model, where the law misfits (``error`` None)
-    or the chain failed (the candidate nearest the record would start a large swing from
-    b + c, further from its answer than the fit's model)."""
+    term a finite bias. Where the law misfits (``error`` None), its choice of terms is
+    not trusted: the model nearest the record among those it contains (at 0.8 rad with
+    viscous damping alone, b, where the law said a + b or a + b + c, reduced chi-square
+    3-14). Where the chain failed, the fit's own model (the candidate nearest the record
+    among all would start a large swing from b + c, further from its answer)."""
     from mcfit.fit.waveform import WaveformStart
 
-    z = {} if error is None else error.z
+    start = WaveformStart.of_fit(fit)
+    if error is None:
+        kept = set(fit.selection.terms)
+        return replace(start, model=None, among=tuple(
+            m for m in MODELS if m != NONE and set(terms_of(m)) <= kept))
+    z = error.z
     if set(z) != set(fit.selection.terms) or not all(map(math.isfinite, z.values())):
-        return WaveformStart.of_fit(fit)
+        return start
     return auto_start(fit, error)
 
 

@@ -90,9 +90,9 @@ class WaveformFit(DecayFit):
 class WaveformStart:
     """Where a waveform fit starts: each model's start values (y0, a, b, c), the model
     fitted first (the turning-point fit's choice; its values start a model without its
-    own; None: the model whose start lies nearest the record), the frequency, and the
-    turning points (times, amplitudes, sigma) at which the result gives the law's
-    amplitude."""
+    own; None: the model whose start lies nearest the record, among the models of
+    ``among`` where given), the frequency, and the turning points (times, amplitudes,
+    sigma) at which the result gives the law's amplitude."""
 
     values: dict
     model: str | None
@@ -100,6 +100,7 @@ class WaveformStart:
     t: np.ndarray = field(repr=False)
     y: np.ndarray = field(repr=False)
     sigma: np.ndarray = field(repr=False)
+    among: tuple | None = None
 
     @classmethod
     def of_fit(cls, fit):
@@ -193,15 +194,16 @@ def open_form(t, x, turning, start, *, form="amplitude", kind=None, forced=None,
     """``form``'s :class:`OpenedForm` on the record, with the sample ``noise`` given
     (another form's, on the same window) or estimated, and with ``fit`` its first model
     fitted from its start: ``forced``, else the start's model, else (None) the one whose
-    start lies nearest the record (:func:`_first_model`). Without a start model
-    (auto_start's distrust) the laws start at the undamped frequency, else at the crests'
-    (from the undamped one, a + c at Q = 5.3 went to a false minimum)."""
+    start lies nearest the record (:func:`_first_model`). Without a start model or models
+    to choose among (auto_start's distrust) the laws start at the undamped frequency, else
+    at the crests' (from the undamped one, a + c at Q = 5.3 went to a false minimum)."""
     kind, offered = FORMS[form] if kind is None else (kind, FORMS[form][1])
     if forced is not None and forced not in offered:
         raise FitError(f"the {form} forms have no model {forced!r}", option="model")
     undamped = undamped_frequency(turning, start.omega)
     tw, xw, t0, nuisance = _window(t, x, turning,
-                                   start.omega if start.model or forced else undamped)
+                                   start.omega if start.model or start.among or forced
+                                   else undamped)
     noise = sample_noise(xw) if noise is None else noise
     starts = start.values
     models = (offered if forced is None
@@ -213,7 +215,7 @@ def open_form(t, x, turning, start, *, form="amplitude", kind=None, forced=None,
                         vectors, undamped)
     if not fit:
         return opened
-    first = forced or _first_model(start.model, waveforms, vectors)
+    first = forced or _first_model(start.model, waveforms, vectors, start.among)
     candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
     return replace(opened, first=candidate, solution=solution)
 
@@ -275,14 +277,15 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
                            noise=None if rival is None else rival.law.noise,
                            fit=rival is None)
     if rival is None:
-        return _ranked_alone(opened, start.model, criterion, alpha, forced)
+        return _ranked_alone(opened, start, criterion, alpha, forced)
     return _ranked_after(opened, start.model, rival, criterion, alpha, forced)
 
 
-def _ranked_alone(opened, model, criterion, alpha, forced):
-    """:func:`rank_form` without a rival, ``model`` the start's."""
+def _ranked_alone(opened, start, criterion, alpha, forced):
+    """:func:`rank_form` without a rival."""
     if opened.first is None:
-        first = forced or _first_model(model, opened.waveforms, opened.vectors)
+        first = forced or _first_model(start.model, opened.waveforms, opened.vectors,
+                                       start.among)
         candidate, solution = _fitted_as_reported(opened.waveforms[first],
                                                   opened.vectors[first])
         opened = replace(opened, first=candidate, solution=solution)
@@ -418,19 +421,22 @@ def _start_vector(values, nuisance, model):
     return np.array([values["y0"]] + nuisance + [values[k] for k in terms_of(model)])
 
 
-def _first_model(model, waveforms, vectors):
+def _first_model(model, waveforms, vectors, among=None):
     """``model`` where the form offers it, the largest model where it does not, and where
-    it is None the model whose waveform at its start vector in ``vectors`` lies nearest
-    the record (least chi-square; of equal starts, the fewest terms)."""
+    it is None the model (of ``among``, where given) whose waveform at its start vector
+    in ``vectors`` lies nearest the record: least chi-square, each term counted 2 as in
+    the AIC (a pendulum's b + c whose c started at 2e-10 beside b: 10 evaluations where b
+    took 5); of equal starts, the fewest terms."""
     if model is not None:
         return model if model in waveforms else _largest(waveforms)
     found = {}  # chi-square by start vector (a model with a term at 0 starts as another)
-    for name in sorted(waveforms, key=lambda m: len(terms_of(m))):
+    choices = [m for m in waveforms if among is None or m in among] or list(waveforms)
+    for name in sorted(choices, key=lambda m: len(terms_of(m))):
         law, begin = waveforms[name], vectors[name]
         key = tuple(begin[:5]) + tuple((k, v) for k, v in zip(law.terms, begin[5:]) if v)
         if key not in found:
             law.typical = _typical(begin, law.terms)
-            found[key] = (law.chi_square(begin), name)
+            found[key] = (law.chi_square(begin) + 2 * len(law.terms), name)
     return min(found.values())[1]
 
 
