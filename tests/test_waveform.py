@@ -882,3 +882,26 @@ def test_a_term_is_dispensable_only_where_dropping_it_costs_less_than_negligible
     for without, expected in ((100.4, True), (102.0, False), (99.0, False), (-5.0, False)):
         estimates = {"b": candidate("b", without)}
         assert waveform._dispensable(best, estimate, estimates, 100) is expected
+
+
+def test_a_candidate_is_fitted_from_the_estimate_of_the_fit_it_extends(monkeypatch):
+    """The bench's Q = 2 record with b alone: b is fitted first, then b + c (near the
+    threshold), which becomes the best; a + b (within the ties) is then fitted from its
+    estimate from b, which it extends, in one evaluation, not from the estimate from
+    b + c (three), with the same choice and values."""
+    from mcfit.analysis import auto_start
+    from mcfit.bench.waveform_speed import q_record
+    from mcfit.model_error import averaged_law_bias
+
+    t, x = q_record(2, "b", 2026)
+    turning = find_turning_points(t, x)
+    fit = fit_turning_points(turning)
+    start = auto_start(fit, averaged_law_bias(t, turning, fit))
+    ours = fit_both_forms(t, x, turning, start)
+    ab = next(c for c in ours.candidates if c.model == "ab")
+    assert ours.model == "b" and not ab.estimated and ab.evaluations == 1
+    monkeypatch.setattr(waveform, "_parent", lambda model, best, fitted, earlier:
+                        earlier[id(best)])
+    theirs = fit_both_forms(t, x, turning, start)
+    assert next(c for c in theirs.candidates if c.model == "ab").evaluations == 3
+    _same_choice(ours, theirs)

@@ -468,12 +468,13 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
     fitted = {first.model: first}
     top = _largest(waveforms)
     n_points = waveforms[top].t.size
-    reference = None
+    reference, earlier = None, {}  # earlier: id of a best -> (it, its estimates)
     while True:
         best = fitted[forced] if forced else min(fitted.values(), key=lambda c: c.aicc)
         if best is not reference:
             reference = best
             estimates = _estimates(waveforms[top], best, set(waveforms) - {best.model})
+            earlier[id(best)] = best, estimates
             _refit_stuck(fitted, estimates, best, waveforms, n_points)
             unfitted = [e for m, e in estimates.items() if m not in fitted]
             if (bar is not None and min([best.aicc] + [e.aicc for e in unfitted]) > bar
@@ -486,14 +487,27 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
         close = _within_noise(best, n_points) and all(
             set(best.terms) < set(e.terms) for e in pending)
         for estimate in pending[:1] if close else pending:
-            fitted[estimate.model] = _fit_estimated(waveforms, vectors, estimate, best,
-                                                           estimates)
+            parent, made = _parent(estimate.model, best, fitted, earlier)
+            fitted[estimate.model] = _fit_estimated(waveforms, vectors,
+                                                    made[estimate.model], parent, made)
         if pending:
             continue
         if top in fitted or not misfits:
             break
         fitted[top] = _ranked(waveforms[top], vectors[top], _RANKING)[0]
     return {m: fitted.get(m) or estimates[m] for m in waveforms}
+
+
+def _parent(model, best, fitted, earlier):
+    """(the fitted model ``model`` adds terms to with the least chi-square of those
+    estimated from, its estimates), or (``best``, its estimates) where there is none:
+    from there the estimate is a small step (a + b at Q = 2 with b alone from b, one
+    evaluation, where from the best b + c, which it does not contain, it took three)."""
+    parents = [earlier[id(c)] for c in fitted.values()
+               if id(c) in earlier and set(c.terms) < set(terms_of(model))]
+    if not parents:
+        return earlier[id(best)]
+    return min(parents, key=lambda pair: pair[0].chi_square)
 
 
 def _fit_estimated(waveforms, vectors, estimate, best, estimates):
