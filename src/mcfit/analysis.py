@@ -364,7 +364,7 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
     than a (reported) standard error (:func:`mcfit.model_error.pendulum_law_bias`) or
     misfits, started from :func:`_pendulum_start`."""
     from mcfit.fit.pendulum_waveform import PendulumWaveformFit
-    from mcfit.fit.waveform import fit_waveform
+    from mcfit.fit.waveform import WaveformStart, fit_waveform, within_noise
     from mcfit.fit.waveform_laws import PendulumWaveform
     from mcfit.model_error import misfit_scale
 
@@ -381,8 +381,15 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
     kind = partial(PendulumWaveform, radians_per_unit=RADIANS_PER_DEGREE if degrees else 1.0)
     x = _without_steady_line(record.t, record.x, turning.steady_line)
-    waveform = fit_waveform(record.t, x, turning, _pendulum_start(fit, error),
-                            criterion=criterion, forced=model, form="velocity", kind=kind)
+    fitted = partial(fit_waveform, record.t, x, turning, criterion=criterion, forced=model,
+                     form="velocity", kind=kind)
+    start = _pendulum_start(fit, error)
+    waveform = fitted(start)
+    if start.model is None and not within_noise(_selected(waveform), waveform.n_points):
+        # From the nearest of the law's models a fit may stop short (drag and Coulomb
+        # friction at Q = 10 from b + c: reduced chi-square 1.82, from a + b + c 0.99).
+        waveform = min(waveform, fitted(WaveformStart.of_fit(fit)),
+                       key=lambda found: _selected(found).aicc)
     waveform = PendulumWaveformFit.of(replace(waveform, damping_form_reason=(
         "the pendulum's equation of motion, with the velocity forms of the damping (viscous, "
         "quadratic drag, sliding friction)")), fit)

@@ -41,7 +41,8 @@ from mcfit.turning.common import HALF_CYCLE_SPACING
 from mcfit.viscous_motion import coulomb_force
 
 __all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
-           "OpenedForm", "open_form", "rank_form", "rank_forms", "report_form", "fit_candidate"]
+           "OpenedForm", "open_form", "rank_form", "rank_forms", "report_form", "fit_candidate",
+           "within_noise"]
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
 # The models fitted after the first are ranked, not reported (the one selected is
 # refitted in full): fitted until chi-square falls by less than this share in a step,
@@ -224,10 +225,11 @@ def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     """{form: RankedForm} for each form of :data:`FORMS` that offers ``forced`` (every
     form without it): one ranked alone, then the others against it (:func:`rank_form`'s
     rival). The amplitude forms go first, unless their first fit does not describe the
-    record within its noise and the velocity forms' first fit does, and better: then the
-    velocity forms go first, and the amplitude forms close on estimates from their first
-    fit (on a viscous oscillator at Q = 3, the amplitude forms' b misfits; ranking them
-    first cost a second b, a + b + c and a + b, about 30 ms)."""
+    record within its noise and the velocity forms' first fit of the same model does,
+    and better: then the velocity forms go first, and the amplitude forms close on
+    estimates from their first fit, or are ranked from it as they would be first, down to
+    the velocity forms' bar (on a viscous oscillator at Q = 3 the amplitude forms' b
+    misfits; ranking them first cost a second b, a + b + c and a + b, about 30 ms)."""
     forms = [form for form, (_, offered) in FORMS.items() if forced is None or forced in offered]
     if not forms:
         return {}
@@ -236,42 +238,58 @@ def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     if forced is None and len(forms) > 1 and _may_not_lead(opened[lead]):
         other = opened[forms[1]] = open_form(t, x, turning, start, form=forms[1],
                                              noise=opened[lead].noise)
-        if (_within_noise(other.first, other.n_points)
-                and other.first.aicc < opened[lead].first.aicc):
+        if _leads(other.first, opened[lead].first, other.n_points):
             lead = forms[1]
     ranked = {lead: rank_form(t, x, turning, start, criterion=criterion, forced=forced,
                               form=lead, opened=opened[lead])}
     for form in forms:
-        if form != lead:
+        if form == lead:
+            continue
+        if lead != forms[0]:  # the first form, opened, against the one that went first
+            ranked[form] = _ranked_alone(opened[form], start, criterion, LRT_ALPHA, forced,
+                                         rival=ranked[lead])
+        else:
             ranked[form] = rank_form(t, x, turning, start, criterion=criterion,
                                      forced=forced, form=form, rival=ranked[lead],
                                      opened=opened.get(form))
     return ranked
 
 
+def _leads(first, other, n_points):
+    """Whether the form whose first fit is ``first`` goes before the one whose first fit
+    is ``other``: the same model, ``first`` within its noise and lower (first fits of
+    two models may only say which start lay nearer: at Q = 3 with b and c and a noise of
+    3e-2 of y0, c and b + c)."""
+    return (first.model == other.model and within_noise(first, n_points)
+            and first.aicc < other.aicc)
+
+
 def _may_not_lead(opened):
     """Whether another form may describe the record where ``opened``'s first fit does not
     (no damping has no form)."""
     first = opened.first
-    return first.model != NONE and not _within_noise(first, opened.n_points)
+    return first.model != NONE and not within_noise(first, opened.n_points)
 
 
 def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced=None,
               form="amplitude", kind=None, rival=None, opened=None):
     """The candidate step of :func:`fit_waveform` in ``form``, from ``opened``
-    (:func:`open_form`; opened here without it). Alone, from the first fit; where it
-    misfits, fitted again from the turning-point values at the undamped frequency the
-    crests imply (:func:`_retuned`; at Q = 3 with a Coulomb stop, the crests' frequency
-    is 11 % below omega). With ``rival`` (another form's :class:`RankedForm`), the first
-    model is the one it selected where that describes the record within its noise, else
-    the start's (:func:`_first_after`), from the rival's values, and the step stops where
-    no candidate can come within :data:`FORM_TIE` of its AICc (the candidates are then
-    only those fitted so far and estimates): where the rival describes the record within
-    its noise, already after a few steps of the first fit (:func:`_glimpse`), or on
-    estimates from the opened first fit where that is of the same model; where it does
-    not, or where the model is forced (nothing else is fitted then), its values may sit in
-    a false minimum, and the first model is fitted from the turning-point fit's values
-    too (or taken from ``opened``), the better fit kept."""
+    (:func:`open_form`; opened here without it).
+
+    Alone: from the first fit; where it misfits, fitted again from the turning-point
+    values at the undamped frequency the crests imply (:func:`_retuned`; at Q = 3 with a
+    Coulomb stop, the crests' frequency is 11 % below omega).
+
+    With ``rival`` (another form's :class:`RankedForm`): the first model is the one the
+    rival selected where that describes the record within its noise, else the start's
+    (:func:`_first_after`), started from the rival's values, and the step stops where no
+    candidate can come within :data:`FORM_TIE` of the rival's AICc (the candidates are
+    then those fitted so far and estimates). Where the rival describes the record within
+    its noise, that can be after a few steps of the first fit (:func:`_glimpse`). Where it
+    does not, or where the model is forced (nothing else is fitted then), the rival's
+    values may sit in a false minimum: the first model is fitted from the turning-point
+    values too (the fit ``opened`` holds, where it is of that model), the better kept.
+    """
     if opened is None:
         opened = open_form(t, x, turning, start, form=form, kind=kind, forced=forced,
                            noise=None if rival is None else rival.law.noise,
@@ -281,8 +299,11 @@ def rank_form(t, x, turning, start, *, criterion="aicc", alpha=LRT_ALPHA, forced
     return _ranked_after(opened, start.model, rival, criterion, alpha, forced)
 
 
-def _ranked_alone(opened, start, criterion, alpha, forced):
-    """:func:`rank_form` without a rival."""
+def _ranked_alone(opened, start, criterion, alpha, forced, rival=None):
+    """:func:`rank_form` from this form's own first fit: without a rival, or against one
+    (:func:`rank_forms`' second form where the other went first) closed on estimates
+    from that fit where none can come within the rival's bar (:func:`_closed`), else
+    ranked down to the bar."""
     if opened.first is None:
         first = forced or _first_model(start.model, opened.waveforms, opened.vectors,
                                        start.among)
@@ -290,11 +311,21 @@ def _ranked_alone(opened, start, criterion, alpha, forced):
                                                   opened.vectors[first])
         opened = replace(opened, first=candidate, solution=solution)
     candidate, solution, vectors = opened.first, opened.solution, opened.vectors
+    bar = bar_fits = None
+    if rival is not None:
+        bar = rival.aicc + FORM_TIE + _DECISIVE
+        bar_fits = not _misfits(rival.candidates[rival.selection.model], opened.n_points)
+        closed = _closed(opened.waveforms, candidate, bar)
+        if closed is not None:
+            candidates = {**closed, candidate.model: candidate}
+            return _selected_form(opened, candidates, candidate, solution, criterion, alpha,
+                                  forced)
     if _misfits(candidate, opened.n_points):
         candidate, solution, vectors = _retuned(
             opened.waveforms[candidate.model], candidate, solution, vectors,
             vectors[candidate.model], opened.undamped)
-    candidates = _fitted_candidates(opened.waveforms, vectors, candidate, forced)
+    candidates = _fitted_candidates(opened.waveforms, vectors, candidate, forced, bar,
+                                    bool(bar_fits))
     return _selected_form(opened, candidates, candidate, solution, criterion, alpha, forced)
 
 
@@ -307,23 +338,17 @@ def _ranked_after(opened, model, rival, criterion, alpha, forced):
     bar = rival.aicc + FORM_TIE + _DECISIVE
     bar_fits = first == rival.selection.model and not _misfits(
         rival.candidates[rival.selection.model], n_points)
-    opening = None
+    opening = None  # the fit from the own start, where the form was opened by it
     if opened.first is not None and opened.first.model == first:
         opening = opened.first, opened.solution
     candidates = candidate = solution = None
     if bar_fits and forced is None:
-        if opening is None:
-            vectors[first], candidates = _glimpse(waveforms, first, vectors[first], bar)
-        else:
-            candidate, solution = opening
-            closed = _closed(waveforms, candidate, bar)
-            candidates = closed and {**closed, first: candidate}
+        vectors[first], candidates = _glimpse(waveforms, first, vectors[first], bar)
     if candidates is None:
-        if candidate is None:
-            fits = [_fitted_as_reported(waveforms[first], vectors[first])]
-            if forced or not bar_fits:  # a false minimum, maybe
-                fits.append(opening or _fitted_as_reported(waveforms[first], own))
-            candidate, solution = min(fits, key=lambda fit: fit[0].chi_square)
+        fits = [_fitted_as_reported(waveforms[first], vectors[first])]
+        if forced or not bar_fits:  # a false minimum, maybe
+            fits.append(opening or _fitted_as_reported(waveforms[first], own))
+        candidate, solution = min(fits, key=lambda fit: fit[0].chi_square)
         if _misfits(candidate, n_points):
             candidate, solution, vectors = _retuned(waveforms[first], candidate, solution,
                                                     vectors, own, opened.undamped)
@@ -350,7 +375,7 @@ def _first_after(rival, model, n_points):
     from two starts, where b is the answer). From the start's model the second form is
     fitted from both starts, not glimpsed (rank_form)."""
     chosen = rival.selection.model
-    if model in (None, NONE) or model not in rival.candidates or _within_noise(
+    if model in (None, NONE) or model not in rival.candidates or within_noise(
             rival.candidates[chosen], n_points):
         return chosen
     return model
@@ -484,7 +509,7 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
                           if m not in fitted and _may_matter(e, best, n_points)),
                          key=lambda e: e.aicc)
         misfits = _misfits(best, n_points)
-        close = _within_noise(best, n_points) and all(
+        close = within_noise(best, n_points) and all(
             set(best.terms) < set(e.terms) for e in pending)
         for estimate in pending[:1] if close else pending:
             parent, made = _parent(estimate.model, best, fitted, earlier)
@@ -568,7 +593,7 @@ def _from_estimate(waveform, estimate):
                       np.linalg.pinv(triangle.T @ triangle))
 
 
-def _within_noise(candidate, n_points):
+def within_noise(candidate, n_points):
     """Whether ``candidate`` describes the record within its noise: reduced chi-square
     within 5 of its standard deviations sqrt(2/dof) of 1 (a misfit is far above that)."""
     dof = n_points - candidate.n_params
