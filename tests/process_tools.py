@@ -2,6 +2,7 @@
 interpreters that show what an import or a call loads."""
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -14,6 +15,17 @@ def children(pid):
                 for p in (task / "children").read_text().split()]
     except OSError:
         return []
+
+
+def with_stop_signals(disposition=signal.SIG_DFL):
+    """A ``preexec_fn`` that starts a child with SIGINT, SIGTERM and SIGHUP at
+    ``disposition``: a test run from a background job (a shell starts those with SIGINT
+    ignored; ``nohup`` ignores SIGHUP) sends its signals to a child that would otherwise
+    inherit them ignored."""
+    def preexec():
+        for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+            signal.signal(signum, disposition)
+    return preexec
 
 
 def python_words(code, **environment):

@@ -26,6 +26,7 @@ from click.testing import CliRunner
 
 from mcfit import decay
 from mcfit.cli import cli
+from process_tools import with_stop_signals
 
 SEED = 1
 
@@ -748,7 +749,8 @@ def test_ctrl_c_keeps_the_records_already_finished(tmp_path):
     out = tmp_path / "out.jsonl"
     process = subprocess.Popen(
         [sys.executable, "-m", "mcfit", *map(str, files), "--format", "json", "-o", str(out)],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        preexec_fn=with_stop_signals())
     deadline = time.monotonic() + 60
     try:
         while time.monotonic() < deadline:  # until the temporary file holds a whole line

@@ -28,7 +28,7 @@ from click.testing import CliRunner
 from mcfit import decay
 from mcfit.cli import cli
 from mcfit.errors import printable
-from process_tools import children
+from process_tools import children, with_stop_signals
 
 TIMEOUT = 120  # seconds any one mcfit process may take, however loaded the machine
 
@@ -125,7 +125,8 @@ def test_a_stop_signal_keeps_the_finished_records(tmp_path, stop):
     before = _digests(files)
     out = tmp_path / "out.jsonl"
     process = subprocess.Popen(_mcfit(*files, "--format", "json", "-o", out),
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=with_stop_signals())
     try:
         _wait_for(lambda: _lines_in_temporary(tmp_path, "out.jsonl") >= 2, process,
                   "two finished records")
@@ -145,12 +146,35 @@ def test_a_stop_signal_keeps_the_finished_records(tmp_path, stop):
 
 
 @pytest.mark.slow
+def test_a_stop_signal_ignored_when_mcfit_starts_stays_ignored(tmp_path):
+    """``nohup mcfit ...``: SIGHUP, ignored by whoever started mcfit, does not stop the
+    batch; every record is fitted and kept (it once did stop it, with exit code 129)."""
+    files = _records(tmp_path / "runs", 8, duration=300.0)
+    out = tmp_path / "out.jsonl"
+    process = subprocess.Popen(_mcfit(*files, "--format", "json", "-o", out),
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=with_stop_signals(signal.SIG_IGN))
+    try:
+        _wait_for(lambda: _lines_in_temporary(tmp_path, "out.jsonl") >= 2, process,
+                  "two finished records")
+        process.send_signal(signal.SIGHUP)
+        stdout, stderr = process.communicate(timeout=TIMEOUT)
+    finally:
+        process.kill()
+    assert process.returncode == 0, stderr
+    assert "Stopped" not in stderr
+    rows = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [row["source"] for row in rows] == [str(f) for f in files]
+
+
+@pytest.mark.slow
 def test_a_stop_signal_to_a_batch_with_workers_ends_them(tmp_path):
     files = _records(tmp_path / "runs", 4, duration=60.0)
     out = tmp_path / "out.csv"
     process = subprocess.Popen(_mcfit(*files, "--jobs", "2", "--bootstrap", "400", "--format",
                                       "csv", "-o", out),
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=with_stop_signals())
     try:
         _wait_for(lambda: len(children(process.pid)) == 2, process, "two workers")
         workers = children(process.pid)

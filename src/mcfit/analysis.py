@@ -364,8 +364,6 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
     than a (reported) standard error (:func:`mcfit.model_error.pendulum_law_bias`) or
     misfits, started from :func:`_pendulum_start`."""
     from mcfit.fit.pendulum_waveform import PendulumWaveformFit
-    from mcfit.fit.waveform import WaveformStart, fit_waveform, within_noise
-    from mcfit.fit.waveform_laws import PendulumWaveform
     from mcfit.model_error import misfit_scale
 
     if (record.kind != "waveform" or fit.domain != "time" or fit.omega is None
@@ -379,6 +377,21 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
             f"the averaged large-swing law's bias is predicted at {bias:.2g} standard errors")
     if not misfits and bias <= 1.0:
         return replace(fit, method_reason=f"{said}: the turning-point fit suffices")
+    waveform = PendulumWaveformFit.of(replace(
+        _pendulum_waveform(record, turning, fit, error, degrees, criterion, model),
+        damping_form_reason=("the pendulum's equation of motion, with the velocity forms of "
+                             "the damping (viscous, quadratic drag, sliding friction)")), fit)
+    return _reported_of(fit, waveform, said, "the pendulum's equation of motion", misfits)
+
+
+def _pendulum_waveform(record, turning, fit, error, degrees, criterion, model):
+    """The waveform fit by the pendulum's equation of motion from :func:`_pendulum_start`;
+    from the nearest of the law's models, where that ends outside the noise, from the
+    law's model too, the better kept (drag and Coulomb friction at Q = 10 from b + c:
+    reduced chi-square 1.82, from a + b + c 0.99)."""
+    from mcfit.fit.waveform import WaveformStart, fit_waveform, within_noise
+    from mcfit.fit.waveform_laws import PendulumWaveform
+
     kind = partial(PendulumWaveform, radians_per_unit=RADIANS_PER_DEGREE if degrees else 1.0)
     x = _without_steady_line(record.t, record.x, turning.steady_line)
     fitted = partial(fit_waveform, record.t, x, turning, criterion=criterion, forced=model,
@@ -386,14 +399,9 @@ def _pendulum_method(record, turning, fit, degrees, *, criterion, model):
     start = _pendulum_start(fit, error)
     waveform = fitted(start)
     if start.model is None and not within_noise(_selected(waveform), waveform.n_points):
-        # From the nearest of the law's models a fit may stop short (drag and Coulomb
-        # friction at Q = 10 from b + c: reduced chi-square 1.82, from a + b + c 0.99).
         waveform = min(waveform, fitted(WaveformStart.of_fit(fit)),
                        key=lambda found: _selected(found).aicc)
-    waveform = PendulumWaveformFit.of(replace(waveform, damping_form_reason=(
-        "the pendulum's equation of motion, with the velocity forms of the damping (viscous, "
-        "quadratic drag, sliding friction)")), fit)
-    return _reported_of(fit, waveform, said, "the pendulum's equation of motion", misfits)
+    return waveform
 
 
 def _pendulum_law_error(t, turning, fit, degrees):
@@ -414,8 +422,10 @@ def _pendulum_start(fit, error):
     term a finite bias. Where the law misfits (``error`` None), its choice of terms is
     not trusted: the model nearest the record among those it contains (at 0.8 rad with
     viscous damping alone, b, where the law said a + b or a + b + c, reduced chi-square
-    3-14). Where the chain failed, the fit's own model (the candidate nearest the record
-    among all would start a large swing from b + c, further from its answer)."""
+    3-14; :func:`_pendulum_method` fits from the law's model too where the fit from there
+    ends outside the noise). Where the chain failed, the fit's own model (the candidate
+    nearest the record among all would start a large swing from b + c, further from its
+    answer)."""
     from mcfit.fit.waveform import WaveformStart
 
     start = WaveformStart.of_fit(fit)

@@ -52,7 +52,8 @@ class _Stopped(BaseException):
 
 @contextlib.contextmanager
 def _stop_signals_interrupt():
-    """While the block runs, SIGTERM and SIGHUP raise :class:`_Stopped` in it.
+    """While the block runs, SIGTERM and SIGHUP raise :class:`_Stopped` in it, unless
+    ignored when it starts (``nohup`` ignores SIGHUP; they stay ignored).
 
     Their default action kills the process at once, leaving temporary files and losing
     the records already finished; raised as an exception they unwind like Ctrl-C does.
@@ -63,7 +64,8 @@ def _stop_signals_interrupt():
     previous = {}
     try:
         for signum in (signal.SIGTERM, signal.SIGHUP):
-            previous[signum] = signal.signal(signum, stop)
+            if signal.getsignal(signum) != signal.SIG_IGN:
+                previous[signum] = signal.signal(signum, stop)
     except ValueError:  # not the main thread: signals cannot be handled here
         pass
     try:

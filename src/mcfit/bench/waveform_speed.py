@@ -201,21 +201,17 @@ def main():
 
 def _waveform_fit_as_auto(t, x, turning, pendulum):
     """(the waveform fit, its arguments) as auto runs it on the record: both forms from
-    auto's start, or a pendulum's equation of motion from where ``pendulum=True`` starts
-    it."""
-    from functools import partial
-
-    from mcfit.analysis import (_pendulum_law_error, _pendulum_start, auto_start,
+    auto's start, or a pendulum's equation of motion as ``pendulum=True`` runs it."""
+    from mcfit.analysis import (_pendulum_law_error, _pendulum_waveform, auto_start,
                                 fit_both_forms, fit_turning_points)
-    from mcfit.fit.waveform import fit_waveform
-    from mcfit.fit.waveform_laws import PendulumWaveform
+    from mcfit.io import Record
     from mcfit.model_error import averaged_law_bias
 
     fit = fit_turning_points(turning, pendulum=pendulum)
     if pendulum:
-        start = _pendulum_start(fit, _pendulum_law_error(t, turning, fit, False))
-        return partial(fit_waveform, form="velocity", kind=PendulumWaveform), (
-            t, x, turning, start)
+        error = _pendulum_law_error(t, turning, fit, False)
+        return _pendulum_waveform, (Record(source="pendulum", t=t, x=x), turning, fit, error,
+                                    False, "aicc", None)
     return fit_both_forms, (t, x, turning, auto_start(fit, averaged_law_bias(t, turning, fit)))
 
 
