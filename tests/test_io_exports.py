@@ -113,6 +113,25 @@ def test_a_text_file_that_is_not_a_table_says_so(tmp_path):
         read_record(path)
 
 
+def test_the_check_for_prose_stops_at_the_first_block_of_numbers(tmp_path, monkeypatch):
+    """A CSV of 10^4 rows is a table after its header and five rows of numbers: the check
+    for prose reads no further (reading all 10^4 lines took 29 ms, 8 times the rest of
+    reading the file), and the record is read as before."""
+    from mcfit.io import sniffing
+
+    t = np.arange(10_000) * 0.004
+    path = tmp_path / "long.csv"
+    path.write_text("t,x\n" + "\n".join(f"{a:.3f},{np.cos(7 * a):.6f}" for a in t) + "\n")
+    seen = []
+    flags = sniffing._numeric_flags
+    monkeypatch.setattr(sniffing, "_numeric_flags", lambda lines: (
+        seen.append(1) or flag for flag in flags(lines)))
+    assert not sniffing._is_prose(path.read_text().splitlines())
+    assert len(seen) == 6  # the header, then five rows
+    record = read_record(path)
+    assert record.t.size == 10_000 and record.x[1] == pytest.approx(np.cos(7 * 0.004), abs=1e-6)
+
+
 def _counts(n=600, step=0.02):
     t = np.arange(n) * step
     return t, np.round(512 + 300 * np.exp(-0.1 * t) * np.cos(2 * np.pi * t / 1.3)).astype(int)
