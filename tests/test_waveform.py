@@ -198,7 +198,8 @@ def test_bootstrap_asked_for_is_not_dropped_silently_when_the_waveform_is_report
 
 def _every_candidate_fitted(monkeypatch):
     """Fit every candidate of both forms in full: no estimate, no estimate taken as its
-    own fit, no form stopped early."""
+    own fit, no form stopped early (each ranked alone, the amplitude forms first)."""
+    monkeypatch.setattr(waveform, "_may_not_lead", lambda opened: False)
     monkeypatch.setattr(waveform, "_may_matter", lambda *args: True)
     monkeypatch.setattr(waveform, "_from_estimate", lambda law, estimate: waveform._ranked(
         law, estimate.internal, waveform._RANKING)[0])
@@ -780,9 +781,13 @@ def test_where_only_the_velocity_forms_describe_their_first_fit_they_go_first(
         ("HystereticWaveform", "b")]
     assert fits.count(("VelocityWaveform", "b")) == 1
     assert "about" in ours.damping_form_reason  # the amplitude forms' AICc is estimated
+    monkeypatch.setattr(waveform, "_closed", lambda *args: None)  # ranked down to the bar
+    unclosed = fit_both_forms(t, x, turning, start)
     _every_candidate_fitted(monkeypatch)
     full = fit_both_forms(t, x, turning, start)
+    assert not any(c.estimated for c in full.candidates)
     _same_choice(ours, full)
+    _same_choice(unclosed, full)
     assert (ours.model, ours.damping_form) == ("b", "velocity")
 
 

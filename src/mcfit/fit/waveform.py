@@ -41,8 +41,8 @@ from mcfit.turning.common import HALF_CYCLE_SPACING
 from mcfit.viscous_motion import coulomb_force
 
 __all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
-           "OpenedForm", "open_form", "rank_form", "rank_forms", "report_form", "fit_candidate",
-           "within_noise"]
+           "OpenedForm", "first_model", "open_form", "rank_form", "rank_forms", "report_form",
+           "fit_candidate", "within_noise"]
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
 # The models fitted after the first are ranked, not reported (the one selected is
 # refitted in full): fitted until chi-square falls by less than this share in a step,
@@ -219,6 +219,13 @@ def open_form(t, x, turning, start, *, form="amplitude", kind=None, forced=None,
     first = forced or _first_model(start.model, waveforms, vectors, start.among)
     candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
     return replace(opened, first=candidate, solution=solution)
+
+
+def first_model(t, x, turning, start, *, form="amplitude", kind=None):
+    """The model a waveform fit in ``form`` from ``start`` fits first: the start's, else
+    the one whose start lies nearest the record (:func:`_first_model`)."""
+    opened = open_form(t, x, turning, start, form=form, kind=kind, fit=False)
+    return _first_model(start.model, opened.waveforms, opened.vectors, start.among)
 
 
 def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None):
@@ -474,7 +481,8 @@ def _fitted_candidates(waveforms, vectors, first, forced, bar=None, bar_fits=Fal
 
     The others are estimated from the best fitted one (:func:`_estimates`) and fitted
     where the estimate may change the choice (:func:`_may_matter`), again from each new
-    best, until none may; each as :func:`_fit_estimated` does. Where every such model
+    best, until none may; each as :func:`_fit_estimated` does, from its estimate from the
+    fitted model it extends where there is one (:func:`_parent`). Where every such model
     adds terms to a best that describes the record within its noise (a small step from
     a good fit: the estimates are close), one at a time, the lowest estimated AICc first,
     so that a model whose estimate only sets a term of the next best at 0 (a + b + c's
@@ -535,16 +543,16 @@ def _parent(model, best, fitted, earlier):
     return min(parents, key=lambda pair: pair[0].chi_square)
 
 
-def _fit_estimated(waveforms, vectors, estimate, best, estimates):
-    """The ranking fit of the model of ``estimate`` (from ``best``, as ``estimates``): from
-    the estimate where the model adds terms to the best, has no sliding friction (a
-    smooth motion) or drops only terms the best can do without (:func:`_dispensable`: a
-    small step), else from its start in ``vectors`` (from an estimate that drops terms, a
-    fit with sliding friction stopped at a kink of the motion, where the swing that stops
-    changes)."""
+def _fit_estimated(waveforms, vectors, estimate, source, estimates):
+    """The ranking fit of the model of ``estimate`` (made from the fitted ``source``, as
+    the rest of ``estimates``): from the estimate where the model adds terms to the
+    source, has no sliding friction (a smooth motion) or drops only terms the source can
+    do without (:func:`_dispensable`: a small step), else from its start in ``vectors``
+    (from an estimate that drops terms, a fit with sliding friction stopped at a kink of
+    the motion, where the swing that stops changes)."""
     model = estimate.model
-    if ("c" not in estimate.terms or set(best.terms) <= set(estimate.terms)
-            or _dispensable(best, estimate, estimates, waveforms[model].t.size)):
+    if ("c" not in estimate.terms or set(source.terms) <= set(estimate.terms)
+            or _dispensable(source, estimate, estimates, waveforms[model].t.size)):
         return _from_estimate(waveforms[model], estimate)
     return _ranked(waveforms[model], vectors[model], _RANKING)[0]
 
