@@ -431,9 +431,9 @@ def _pendulum_start(fit, error):
     not trusted: the model nearest the record among those it contains (at 0.8 rad with
     viscous damping alone, b, where the law said a + b or a + b + c, reduced chi-square
     3-14; :func:`_pendulum_waveform` fits from the law's model too where the fit from
-    there selects another model or ends outside the noise). Where the chain failed, the fit's own model (the candidate
-    nearest the record among all would start a large swing from b + c, further from its
-    answer)."""
+    there selects another model or ends outside the noise). Where the chain failed, the
+    fit's own model (the candidate nearest the record among all would start a large
+    swing from b + c, further from its answer)."""
     from mcfit.fit.waveform import WaveformStart
 
     start = WaveformStart.of_fit(fit)
