@@ -393,7 +393,8 @@ def _pendulum_waveform(record, turning, fit, error, degrees, criterion, model):
     reached from another's estimate can stop short (drag and Coulomb friction at Q = 10,
     a + b + c from b + c: reduced chi-square 1.82, and at Q = 15 1.0004 with a 4.5
     standard errors off; from the law's a + b + c 0.99 and 0.98)."""
-    from mcfit.fit.waveform import WaveformStart, first_model, fit_waveform, within_noise
+    from mcfit.fit.waveform import (WaveformStart, fit_waveform, open_form, rank_form,
+                                    report_form, within_noise)
     from mcfit.fit.waveform_laws import PendulumWaveform
 
     kind = partial(PendulumWaveform, radians_per_unit=RADIANS_PER_DEGREE if degrees else 1.0)
@@ -403,8 +404,10 @@ def _pendulum_waveform(record, turning, fit, error, degrees, criterion, model):
     start = _pendulum_start(fit, error)
     if start.model is not None or model is not None:
         return fitted(start)
-    nearest = first_model(record.t, x, turning, start, form="velocity", kind=kind)
-    waveform = fitted(replace(start, model=nearest, among=None))
+    opened = open_form(record.t, x, turning, start, form="velocity", kind=kind)
+    nearest = opened.first.model
+    waveform = report_form(rank_form(record.t, x, turning, start, criterion=criterion,
+                                     form="velocity", kind=kind, opened=opened), start)
     if nearest == fit.model or (waveform.model == nearest and within_noise(
             _selected(waveform), waveform.n_points)):
         return waveform

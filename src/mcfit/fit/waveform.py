@@ -41,8 +41,8 @@ from mcfit.turning.common import HALF_CYCLE_SPACING
 from mcfit.viscous_motion import coulomb_force
 
 __all__ = ["FORMS", "FORM_TIE", "WaveformFit", "WaveformStart", "RankedForm", "fit_waveform",
-           "OpenedForm", "first_model", "open_form", "rank_form", "rank_forms", "report_form",
-           "fit_candidate", "within_noise"]
+           "OpenedForm", "open_form", "rank_form", "rank_forms", "report_form", "fit_candidate",
+           "within_noise"]
 _TOLERANCES = {"ftol": 1e-10, "xtol": 1e-10, "gtol": 1e-10}
 # The models fitted after the first are ranked, not reported (the one selected is
 # refitted in full): fitted until chi-square falls by less than this share in a step,
@@ -214,18 +214,17 @@ def open_form(t, x, turning, start, *, form="amplitude", kind=None, forced=None,
                                     model) for model in models}
     opened = OpenedForm(form, lambda terms: kind(tw, xw, t0, terms, noise), waveforms,
                         vectors, undamped)
-    if not fit:
+    return _with_first_fit(opened, start, forced) if fit else opened
+
+
+def _with_first_fit(opened, start, forced):
+    """``opened`` with its first model fitted from its start (as it is, where fitted)."""
+    if opened.first is not None:
         return opened
-    first = forced or _first_model(start.model, waveforms, vectors, start.among)
-    candidate, solution = _fitted_as_reported(waveforms[first], vectors[first])
+    first = forced or _first_model(start.model, opened.waveforms, opened.vectors,
+                                   start.among)
+    candidate, solution = _fitted_as_reported(opened.waveforms[first], opened.vectors[first])
     return replace(opened, first=candidate, solution=solution)
-
-
-def first_model(t, x, turning, start, *, form="amplitude", kind=None):
-    """The model a waveform fit in ``form`` from ``start`` fits first: the start's, else
-    the one whose start lies nearest the record (:func:`_first_model`)."""
-    opened = open_form(t, x, turning, start, form=form, kind=kind, fit=False)
-    return _first_model(start.model, opened.waveforms, opened.vectors, start.among)
 
 
 def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None):
@@ -311,12 +310,7 @@ def _ranked_alone(opened, start, criterion, alpha, forced, rival=None):
     (:func:`rank_forms`' second form where the other went first) closed on estimates
     from that fit where none can come within the rival's bar (:func:`_closed`), else
     ranked down to the bar."""
-    if opened.first is None:
-        first = forced or _first_model(start.model, opened.waveforms, opened.vectors,
-                                       start.among)
-        candidate, solution = _fitted_as_reported(opened.waveforms[first],
-                                                  opened.vectors[first])
-        opened = replace(opened, first=candidate, solution=solution)
+    opened = _with_first_fit(opened, start, forced)
     candidate, solution, vectors = opened.first, opened.solution, opened.vectors
     bar = bar_fits = None
     if rival is not None:
@@ -557,14 +551,14 @@ def _fit_estimated(waveforms, vectors, estimate, source, estimates):
     return _ranked(waveforms[model], vectors[model], _RANKING)[0]
 
 
-def _dispensable(best, estimate, estimates, n_points):
-    """Whether the terms of ``best`` that ``estimate`` drops lower chi-square by less than
-    _NEGLIGIBLE (``estimates`` has best without them): within about a standard error of
-    0 (a pendulum at Q = 3 whose a + b fit ends at a = 2e-5, against b + c)."""
-    kept = "".join(k for k in best.terms if k in estimate.terms) or NONE
+def _dispensable(source, estimate, estimates, n_points):
+    """Whether the terms of ``source`` that ``estimate`` drops lower chi-square by less
+    than _NEGLIGIBLE (``estimates`` has source without them): within about a standard
+    error of 0 (a pendulum at Q = 3 whose a + b fit ends at a = 2e-5, against b + c)."""
+    kept = "".join(k for k in source.terms if k in estimate.terms) or NONE
     without = estimates.get(kept)
-    return (without is not None and without.chi_square >= best.chi_square
-            and _statistic(without, best, n_points) < _NEGLIGIBLE)
+    return (without is not None and without.chi_square >= source.chi_square
+            and _statistic(without, source, n_points) < _NEGLIGIBLE)
 
 
 def _refit_stuck(fitted, estimates, best, waveforms, n_points):
