@@ -18,7 +18,7 @@ from mcfit.options import check_fit_options
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "auto_start", "crop_record",
-           "failed_analysis", "fit_turning_points", "fit_by_method", "with_large_swing_warning"]
+           "failed_analysis", "free_decay_runs", "fit_turning_points", "fit_by_method", "with_large_swing_warning"]
 
 @dataclass(frozen=True)
 class Analysis:
@@ -63,9 +63,13 @@ class Analysis:
             out["period_drift"] = turning["period_drift"]
             # Where the free decay starts, when the record begins held, driven or settling.
             out["release_time"] = turning["release_time"]
+            if out["release_time"] is None and _placed_start(self.record):
+                out["release_time"] = float(self.record.t[0])
             out["notes"] = (record["notes"] if record else []) + turning["notes"]
         elif record is not None:
             out["notes"] = record["notes"]
+        if record is not None:
+            out["left_out"] = record["left_out"]
         if detail and "detail" in out:  # last, after the record's and turning points' keys
             out["detail"] = out.pop("detail")
         return out
@@ -208,6 +212,39 @@ def _per_cycle(params, domain, turning):
         return None
     return {k: {part: None if params[k][part] is None else number(params[k][part] * period)
                 for part in ("value", "stderr")} for k in TERMS}
+
+
+def _placed_start(record) -> bool:
+    """Whether the free decay was found to start after the record's first sample."""
+    return record is not None and any(
+        end == float(record.t[0]) for _, end, _ in record.left_out)
+
+
+def free_decay_runs(record) -> list:
+    """``record`` kept to its free decay, or one record per free decay where it was excited
+    more than once (``run`` "Run 1", "Run 2", ...; within a run of several side by side,
+    "Run 3.1"...), by :func:`mcfit.turning.placement.locate_free_decay`. A table of turning
+    points, a record against cycle number and a record already placed come back as they
+    are. The parts left out are in ``left_out`` and the notes."""
+    from mcfit.turning.placement import locate_free_decay
+
+    if record.kind != "waveform" or record.domain != "time" or record.whole is not None:
+        return [record]
+    placement = locate_free_decay(record.t, record.x)
+    if not placement.moved:
+        return [record]
+    several = len(placement.runs) > 1
+    runs = []
+    for number, (start, end) in enumerate(placement.runs, 1):
+        low, high = np.searchsorted(record.t, [start, end], side="left")
+        high = record.t.size if end >= record.t[-1] else high
+        run = record.run
+        if several:
+            run = f"Run {number}" if record.run is None else f"{record.run}.{number}"
+        runs.append(replace(record, t=record.t[low:high], x=record.x[low:high], run=run,
+                            notes=record.notes + placement.notes,
+                            left_out=placement.left_out, whole=(record.t, record.x)))
+    return runs
 
 
 def failed_analysis(source: str, message: str, record=None, turning=None) -> Analysis:
@@ -609,6 +646,8 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
                               method=method, pendulum=pendulum, start=start, end=end)
     source = record.source
     try:
+        if start is None and end is None:
+            record = free_decay_runs(record)[0]
         record = crop_record(record, start, end)
         turning = turning_points_of(record)
     except McfitError as error:

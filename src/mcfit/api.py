@@ -22,7 +22,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from mcfit.analysis import Analysis, analyse_record
+from mcfit.analysis import Analysis, analyse_record, free_decay_runs
 from mcfit.errors import UsageError
 from mcfit.options import check_fit_options, check_read_options
 from mcfit.record import Record, detect_kind
@@ -96,6 +96,12 @@ def analyse_file(path, *, unit=None, **options) -> Analysis:
     if len(records) > 1:
         raise UsageError(f"{path} holds {len(records)} runs side by side; give run=N for "
                          "one, or use analyse_files for all of them.")
+    if options.get("start") is None and options.get("end") is None:
+        records = free_decay_runs(records[0])
+        if len(records) > 1:
+            raise UsageError(f"{path} holds {len(records)} free decays (the oscillator "
+                             "was excited more than once); use analyse_files for all of "
+                             "them, or start= and end= for one.")
     record = replace(records[0], signal_unit=unit) if unit else records[0]
     return replace(analyse_record(record, **keywords), source=record.name)
 

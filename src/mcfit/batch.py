@@ -279,10 +279,7 @@ def _job_for(source, options, plot_path):
     from mcfit.io import read_records
 
     try:
-        records = read_records(source, time_col=options.time_col,
-                               signal_col=options.signal_col, sheet=options.sheet,
-                               rate=options.rate, kind=options.kind, domain=options.domain,
-                               run=options.run, angle_from=options.angle_from)
+        records = _free_decays(source, options)
     except McfitError as error:
         return FileResult.failed(source, _message(error, source))
     several = len(records) > 1
@@ -290,6 +287,40 @@ def _job_for(source, options, plot_path):
         _record_job(source, record, options,
                     run_plot_path(plot_path, record.run) if several else plot_path)
         for record in records))
+
+
+def _free_decays(source, options):
+    """The records of ``source`` to fit: every run side by side, each kept to its free
+    decay or split into one record per free decay (:func:`mcfit.analysis.free_decay_runs`)
+    unless ``--start``/``--end`` set the window; ``--run N`` picks a run side by side or,
+    in a file of one run, a free decay."""
+    from mcfit.analysis import free_decay_runs
+    from mcfit.io import read_records
+
+    def read(run):
+        return read_records(source, time_col=options.time_col,
+                            signal_col=options.signal_col, sheet=options.sheet,
+                            rate=options.rate, kind=options.kind, domain=options.domain,
+                            run=run, angle_from=options.angle_from)
+
+    if options.start is not None or options.end is not None:
+        return read(options.run)
+    try:
+        records = read(options.run)
+    except UsageError as error:
+        if options.run is None:
+            raise
+        records = read(None)
+        if len(records) != 1 or records[0].run is not None:
+            raise
+        runs = free_decay_runs(records[0])
+        wanted = f"Run {options.run}"
+        chosen = [r for r in runs if r.run == wanted]
+        if not chosen:
+            raise UsageError(f"{error} (its free decays: {len(runs)})",
+                             option="run") from None
+        return chosen
+    return [run for record in records for run in free_decay_runs(record)]
 
 
 def run_plot_path(plot_path, run):

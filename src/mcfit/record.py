@@ -38,8 +38,14 @@ class Record:
     notes : tuple of str
         One sentence per decision or oddity, for the report.
     run : str or None
-        Which of the file's runs side by side this is (``"Run 7"``); None for a file of
-        one run.
+        Which of the file's runs side by side this is (``"Run 7"``), or of the free decays
+        of a record excited more than once; None for a file of one run.
+    left_out : tuple of (float, float, str)
+        The stretches of the recorded signal left out before, between or after the free
+        decay, with why (:func:`mcfit.turning.placement.locate_free_decay`).
+    whole : tuple of two ndarrays or None
+        The record's times and signal as read, where ``t`` and ``x`` are the free decay
+        found in them (for the figure); None where they are the whole record.
     """
 
     source: str
@@ -54,6 +60,8 @@ class Record:
     columns: tuple[str, ...] = ()
     notes: tuple[str, ...] = field(default=())
     run: str | None = None
+    left_out: tuple = ()
+    whole: tuple | None = field(default=None, repr=False)
 
     @property
     def name(self) -> str:
@@ -77,7 +85,9 @@ class Record:
                 "domain": self.domain, "samples": int(self.t.size),
                 "time_column": self.time_column, "signal_column": self.signal_column,
                 "time_unit": self.time_unit, "signal_unit": self.signal_unit,
-                "columns": list(self.columns), "notes": list(self.notes)}
+                "columns": list(self.columns), "notes": list(self.notes),
+                "left_out": [{"start": a, "end": b, "why": why}
+                             for a, b, why in self.left_out]}
 
 
 def coefficient_units(signal_unit, per) -> dict:

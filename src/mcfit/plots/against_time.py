@@ -25,7 +25,10 @@ _BAND_SHOWS = 1.0
 
 
 def draw_record(axes, view, fit):
-    """The record, its turning points (used and left out) and the fitted envelope."""
+    """The record, its turning points (used and left out) and the fitted envelope; the
+    stretches that are not the free decay shaded, and where it starts and ends marked."""
+    if view.whole_t is not None:
+        _draw_left_out(axes, view)
     if view.t is not None:
         axes.plot(view.t, view.x, color="0.55", lw=0.5, label="record")
         if view.equilibrium is not None:
@@ -48,6 +51,19 @@ def draw_record(axes, view, fit):
     axes.set_ylabel(view.signal_label)
     axes.set_title("record and turning points")
     place_legend(axes)
+
+
+def _draw_left_out(axes, view):
+    """The record as read, lighter, with the stretches left out shaded and the free
+    decay's start and end marked."""
+    axes.plot(view.whole_t, view.whole_x, color="0.8", lw=0.5)
+    for number, (start, end, _) in enumerate(view.left_out):
+        axes.axvspan(start, end, color="0.85", alpha=0.6, lw=0,
+                     label=None if number else "left out: not the free decay")
+    for edge, inside in ((view.t[0], view.t[0] > view.whole_t[0]),
+                         (view.t[-1], view.t[-1] < view.whole_t[-1])):
+        if inside:
+            axes.axvline(edge, color="0.3", lw=0.8, ls="--")
 
 
 def draw_amplitudes(axes, axes_residual, view, fit):

@@ -43,6 +43,9 @@ class RecordView:
     time_unit: str = "s"
     period: float = float("nan")
     period_sigma: float = float("nan")
+    whole_t: np.ndarray | None = None  # the record as read, where t/x are its free decay
+    whole_x: np.ndarray | None = None
+    left_out: tuple = ()  # (start, end, why) of the stretches that are not the free decay
 
     @property
     def time_label(self) -> str:
@@ -103,7 +106,10 @@ def record_view(analysis, title: str | None = None, unit: str | None = None) -> 
                       used=np.asarray(turning.used), turning_y=np.asarray(turning.y),
                       quantity=_quantity(record.signal_column), unit=unit or None,
                       time_unit=time_unit, period=_finite(turning.period),
-                      period_sigma=_finite(turning.period_sigma))
+                      period_sigma=_finite(turning.period_sigma),
+                      whole_t=None if record.whole is None else record.whole[0],
+                      whole_x=None if record.whole is None else record.whole[1],
+                      left_out=tuple(record.left_out))
 
 
 def _turning_positions(turning, t, x):

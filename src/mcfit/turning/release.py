@@ -24,6 +24,8 @@ _MIN_BEFORE = 3
 _KNEE_CRESTS = 4
 _KNEE_SCALES = 3
 _RELEASE_SEARCH = 400
+# The amplitude has clearly fallen below its highest so far by this share of it, at least.
+_FALLEN_SHARE = 0.01
 # Third differences of crest magnitudes needed to measure their scatter.
 _SCATTER_DIFFERENCES = 16
 # The decay after a release must not rise again while above this many sigma.
@@ -49,7 +51,10 @@ def _release(held, centres, signs, magnitude, magnitude_sigma, measured, period)
         knee = _knee(centres[index], magnitude[index], signs[index],
                      _release_scatter(magnitude[index], signs[index], magnitude_sigma[index]))
         if knee:
-            return float(centres[index[knee]]), int(index[knee]), _RELEASE_CAUSES["knee"]
+            # The motion became free after the crest before the knee's: the knee's own
+            # half-cycle may straddle that moment, so the decay's first crest is the next.
+            return (float(centres[index[knee]]), int(index[min(knee + 1, index.size - 1)]),
+                    _RELEASE_CAUSES["knee"])
     if held is not None:
         return float(held), first, _RELEASE_CAUSES["held"]
     return float("nan"), 0, ""
@@ -138,12 +143,17 @@ def _knee(times, values, signs, sigma):
 
 def _flat_before(times, values, signs, sigma, first):
     """Whether the amplitude does not fall over the crests before ``first`` (a straight
-    line, plus a term for maxima against minima, above -_FLAT_Z standard errors)."""
+    line, plus a term for maxima against minima, above -_FLAT_Z standard errors, or by
+    less than _FALLEN_SHARE over those crests)."""
     before = slice(0, first)
     s = times[before] - times[first]
     design = np.column_stack([np.ones_like(s), signs[before], s])
     solution, _, covariance = _crest_fit(design, values[before], sigma)
-    return bool(solution[2] > -_FLAT_Z * np.sqrt(covariance[2, 2]))
+    # Crests of a drive's plateau measured beside a decay may fall by a little more than
+    # their noise: up to _FALLEN_SHARE over the stretch counts as flat.
+    span = max(float(s[-1] - s[0]), float(np.finfo(float).tiny)) if s.size > 1 else 1.0
+    allowed = _FLAT_Z * np.sqrt(covariance[2, 2]) + _FALLEN_SHARE * abs(solution[0]) / span
+    return bool(solution[2] > -allowed)
 
 
 def _rises_again(values, signs, sigma):
@@ -212,10 +222,13 @@ def _first_free_crest(times, values, signs, sigma, first, last):
 
 def _search_end(values, signs, sigma):
     """Last crest that may start the free decay: before the mean of a maximum and a
-    minimum falls _RELEASE_Z sigma below the highest so far, with _KNEE_CRESTS crests
+    minimum falls _RELEASE_Z sigma (and _FALLEN_SHARE) below the highest so far, with _KNEE_CRESTS crests
     after it, within the first _RELEASE_SEARCH."""
     pairs = _pair_means(values, signs)
-    fallen = np.flatnonzero(pairs < np.fmax.accumulate(pairs) - _RELEASE_Z * sigma)
+    highest = np.fmax.accumulate(pairs)
+    # Clearly: a crest measured about a drive's plateau can be off by more than its noise.
+    fallen = np.flatnonzero(pairs < highest - np.maximum(_RELEASE_Z * sigma,
+                                                         _FALLEN_SHARE * highest))
     end = int(fallen[0]) + 1 if fallen.size else values.size
     return min(end, values.size - _KNEE_CRESTS, _RELEASE_SEARCH)
 

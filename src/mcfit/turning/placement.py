@@ -1,0 +1,346 @@
+"""Where the free decay is in a record: the stretch after a rest, a held push or a strike
+and its transient, up to a new excitation; a record excited more than once gives one
+stretch (a run) each. numpy only, no I/O; linear in the record.
+
+The record is demodulated in blocks of about two periods at the frequency that lasts
+longest (docs/theory.md, "Where the free decay is"):
+
+1. The steady frequency: the record is cut into about 24 stretches, each stretch's
+   spectral peak is found, and the frequency held by the most stretches wins (a strike's
+   loud transient lasts one stretch, the decay many); it is refined on the span of those
+   stretches.
+2. Each block is fitted by ``m + s*tau + A*cos(w*t + phi)``: its amplitude ``A`` and the
+   scatter ``r`` of its residuals.
+3. A new excitation is a block whose amplitude is at least twice that of two blocks
+   before, beyond the noise (a release from rest or a hold, a second strike).
+4. Between two excitations the free decay starts at the first block whose amplitude is
+   not exceeded later (its envelope only falls) and whose residuals are not those of a
+   transient (several times those of the blocks after it: the strike's other modes, the
+   hand letting go), and ends where the next excitation begins.
+
+A stretch counts as a run when it holds at least :data:`MIN_BLOCKS` free blocks and
+swings at least :data:`MIN_SHARE` of the largest run's amplitude; the others (a brief
+ring while the mass is pushed aside) are named in a note and left out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Placement", "locate_free_decay"]
+
+# Stretches whose spectral peaks vote for the steady frequency, and the votes it needs.
+_STRETCHES = 24
+_MIN_VOTES = 3
+# Periods in one demodulation block, and the fewest samples in one.
+_BLOCK_PERIODS = 2.0
+_MIN_BLOCK_SAMPLES = 8
+# A new excitation: the amplitude at least this factor above that of two blocks before,
+# and by this many amplitude standard errors.
+_RISE_FACTOR = 2.0
+_RISE_Z = 5.0
+# Within a run, a later amplitude above this many standard errors (and this fraction of
+# the block's) over a block's shows the envelope still rising.
+_LATER_Z = 4.0
+_LATER_FRACTION = 0.02
+# A transient: residuals, for the amplitude, this many times the median of those of the
+# blocks within _AHEAD after it that swing at least _SIMILAR of its amplitude (at least
+# _MIN_ALIKE of them), beyond the noise.
+_TRANSIENT_FACTOR = 3.0
+_AHEAD = 64
+_SIMILAR = 0.7
+_MIN_ALIKE = 4
+# A still stretch swings by less than this share of the decay's first amplitude; the
+# signal has left it where it is this many times its band away from its level.
+_STILL_SHARE = 0.1
+_DEPARTURE_FACTOR = 3.0
+# A run needs this many free blocks, and this share of the largest run's amplitude.
+MIN_BLOCKS = 3
+MIN_SHARE = 0.25
+
+
+@dataclass(frozen=True)
+class Placement:
+    """Where the free decays of a record are.
+
+    Attributes
+    ----------
+    runs : tuple of (float, float)
+        Start and end time of each free decay, in time order (the end is the last
+        sample's time for the last run).
+    left_out : tuple of (float, float, str)
+        The stretches left out, with why ("rest", "transient", "rising", "brief ring").
+    period : float
+        The steady period found (NaN when the record was not placed).
+    notes : tuple of str
+        One sentence per decision.
+    """
+
+    runs: tuple = ()
+    left_out: tuple = ()
+    period: float = float("nan")
+    notes: tuple = ()
+
+    @property
+    def moved(self) -> bool:
+        """Whether any part of the record was left out (else it is one free decay)."""
+        return bool(self.left_out)
+
+
+def locate_free_decay(t, x) -> Placement:
+    """The free decays of a sampled record x(t): see the module's docstring.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Sample times, evenly spaced (a record with gaps, NaN or uneven steps is not
+        placed: the whole record is returned as one run).
+    x : ndarray, shape (n,)
+        Signal.
+
+    Returns
+    -------
+    Placement
+        One run spanning the record where it cannot be placed or is one free decay from
+        its start.
+    """
+    t = np.asarray(t, dtype=float)
+    x = np.asarray(x, dtype=float)
+    whole = Placement(runs=((float(t[0]), float(t[-1])),) if t.size else ())
+    if not _placeable(t, x):
+        return whole
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    frequency = _steady_frequency(x, dt)
+    if frequency is None:
+        return whole
+    blocks = _demodulated(t, x, frequency)
+    if blocks is None:
+        return whole
+    return _placement(t, x, blocks, 1.0 / frequency) or whole
+
+
+def _placeable(t, x):
+    if t.size < _STRETCHES * 4 * _MIN_BLOCK_SAMPLES or not np.all(np.isfinite(x)):
+        return False
+    steps = np.diff(t)
+    return bool(np.all(steps > 0) and steps.max() <= 1.5 * steps.min()
+                and np.ptp(x) > 0)
+
+
+def _steady_frequency(x, dt):
+    """The frequency (Hz) that the most stretches of the record peak at, refined on their
+    span; None when no frequency holds _MIN_VOTES stretches."""
+    length = x.size // _STRETCHES
+    stretches = x[:length * _STRETCHES].reshape(_STRETCHES, length)
+    peaks, strong = _stretch_peaks(stretches)
+    votes = np.bincount(peaks[strong], minlength=length // 2 + 1)
+    # Neighbouring bins vote together: a line between two bins, or drifting a little.
+    pooled = votes + np.concatenate(([0], votes[:-1])) + np.concatenate((votes[1:], [0]))
+    best = int(np.argmax(pooled))
+    if pooled[best] < _MIN_VOTES or best < 2:
+        return None
+    held = np.flatnonzero(strong & (np.abs(peaks - best) <= 1))
+    span = x[held[0] * length:(held[-1] + 1) * length]
+    return _refined_peak(span, dt, (best - 1.5) / (length * dt), (best + 1.5) / (length * dt))
+
+
+def _stretch_peaks(stretches):
+    """(peak bin of each stretch, whether it stands well above the stretch's floor)."""
+    centred = stretches - stretches.mean(axis=1, keepdims=True)
+    power = np.abs(np.fft.rfft(centred * np.hanning(stretches.shape[1]), axis=1)) ** 2
+    power[:, :2] = 0.0  # the mean and drift, not an oscillation
+    peaks = np.argmax(power, axis=1)
+    top = power[np.arange(power.shape[0]), peaks]
+    floor = np.median(power[:, 2:], axis=1)
+    return peaks, top > 30.0 * floor
+
+
+def _refined_peak(span, dt, low, high):
+    """The spectral peak of ``span`` between ``low`` and ``high`` Hz, interpolated."""
+    centred = span - span.mean()
+    size = max(span.size, 4 * int(round(1.0 / (low * dt))) if low > 0 else span.size)
+    power = np.abs(np.fft.rfft(centred * np.hanning(span.size), n=size)) ** 2
+    frequencies = np.fft.rfftfreq(size, dt)
+    inside = np.flatnonzero((frequencies >= low) & (frequencies <= high))
+    if inside.size == 0:
+        return None
+    k = int(inside[np.argmax(power[inside])])
+    if 0 < k < power.size - 1:
+        below, top, above = np.log(power[k - 1:k + 2] + 1e-300)
+        bend = below - 2 * top + above
+        shift = 0.5 * (below - above) / bend if bend < 0 else 0.0
+        return float((k + np.clip(shift, -0.5, 0.5)) / (size * dt))
+    return float(frequencies[k])
+
+
+@dataclass(frozen=True)
+class _Blocks:
+    start: np.ndarray  # index of each block's first sample
+    amplitude: np.ndarray
+    residual: np.ndarray  # rms of the residuals
+    size: int  # samples per block
+
+
+def _demodulated(t, x, frequency):
+    """Each block of about _BLOCK_PERIODS periods fitted by a line and one sinusoid."""
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    size = max(_MIN_BLOCK_SAMPLES, int(round(_BLOCK_PERIODS / (frequency * dt))))
+    count = x.size // size
+    if count < 2 * MIN_BLOCKS:
+        return None
+    shape = (count, size)
+    phase = 2 * np.pi * frequency * (t[:count * size] - t[0])
+    tau = np.broadcast_to(np.linspace(-1.0, 1.0, size), shape)
+    design = np.stack([np.ones(shape), tau, np.cos(phase).reshape(shape),
+                       np.sin(phase).reshape(shape)], axis=-1)
+    values = x[:count * size].reshape(shape)
+    normal = np.einsum("kni,knj->kij", design, design)
+    coefficients = np.linalg.solve(normal, np.einsum("kni,kn->ki", design, values)[..., None])[..., 0]
+    residual = values - np.einsum("kni,ki->kn", design, coefficients)
+    return _Blocks(start=np.arange(count) * size,
+                   amplitude=np.hypot(coefficients[:, 2], coefficients[:, 3]),
+                   residual=np.sqrt(np.mean(residual * residual, axis=1)), size=size)
+
+
+def _placement(t, x, blocks, period):
+    """The runs and the parts left out, or None where the record is one free decay."""
+    noise = float(np.median(blocks.residual))
+    amplitude_sigma = max(noise * np.sqrt(2.0 / blocks.size), 1e-300)
+    onsets = _onsets(blocks.amplitude, amplitude_sigma)
+    edges = np.concatenate(([0], onsets, [blocks.amplitude.size]))
+    stretches = [_free_stretch(blocks, edges[i], edges[i + 1], amplitude_sigma, noise)
+                 for i in range(edges.size - 1)]
+    largest = max((blocks.amplitude[s:e].max() for s, e in stretches if e - s >= MIN_BLOCKS),
+                  default=0.0)
+    if largest == 0.0:
+        return None
+    runs, left_out, notes = [], [], []
+    block_time = blocks.size * (t[1] - t[0])
+    for (low, high), (free, end) in zip(zip(edges[:-1], edges[1:]), stretches):
+        begin, stop = _time(t, blocks, low), _time(t, blocks, high)
+        swing = blocks.amplitude[free:end].max() if end > free else 0.0
+        if end - free >= MIN_BLOCKS and swing >= MIN_SHARE * largest:
+            first = _time(t, blocks, free)
+            if free > low:
+                why = _why(blocks, low, free)
+                departure = None if why == "transient" else _departure(
+                    t, x, blocks, low, free, period)
+                first, why = (departure, "rest") if departure is not None else (first, why)
+                left_out.append((begin, first, why))
+            runs.append((first, stop if high < blocks.amplitude.size else float(t[-1])))
+        elif high > low:
+            left_out.append((begin, stop if high < blocks.amplitude.size else float(t[-1]),
+                             _why_not_run(blocks, low, high, swing, amplitude_sigma)))
+    if not left_out or not runs:
+        return None
+    notes = _notes(runs, left_out, block_time)
+    return Placement(runs=tuple(runs), left_out=tuple(left_out), period=period,
+                     notes=tuple(notes))
+
+
+def _departure(t, x, blocks, low, free, period):
+    """The moment the signal leaves the still level it held at the start of the blocks
+    ``low:free`` before a free decay (a rest, a hold), to the sample; None where it was
+    not still there. The level and its band are those of the first quarter-period."""
+    begin, end = low * blocks.size, free * blocks.size
+    dt = t[1] - t[0]
+    quarter = max(3, int(round(0.25 * period / dt)))
+    still = x[begin:begin + quarter]
+    level = float(np.median(still))
+    band = float(np.max(np.abs(still - level)))
+    if not band < _STILL_SHARE * blocks.amplitude[free]:
+        return None
+    away = np.abs(x[begin + quarter:end] - level) > _DEPARTURE_FACTOR * band
+    moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one spike
+    return float(t[begin + quarter + moving[0]]) if moving.size else None
+
+
+def _time(t, blocks, index):
+    return float(t[min(int(index) * blocks.size, t.size - 1)])
+
+
+def _onsets(amplitude, sigma):
+    """Blocks where a new excitation starts: the amplitude at least _RISE_FACTOR times
+    that of two blocks before, by _RISE_Z standard errors."""
+    before = np.maximum(amplitude[:-2], amplitude[1:-1])
+    rise = (amplitude[2:] >= _RISE_FACTOR * before) & (amplitude[2:] - before > _RISE_Z * sigma)
+    onsets = np.flatnonzero(rise) + 2
+    # One excitation rises over a few blocks: keep the first block of each rise.
+    keep = np.concatenate(([True], np.diff(onsets) > 2)) if onsets.size else onsets
+    return onsets[keep] - 1  # the block before the rise already holds its start
+
+
+def _free_stretch(blocks, low, high, sigma, noise):
+    """(first free block, end block) of the stretch of blocks ``low:high``."""
+    amplitude, residual = blocks.amplitude[low:high], blocks.residual[low:high]
+    if amplitude.size == 0:
+        return low, low
+    later = np.maximum.accumulate(amplitude[::-1])[::-1]  # the largest from each on
+    later = np.concatenate((later[1:], [0.0]))
+    rising = later > amplitude + _LATER_Z * sigma + _LATER_FRACTION * amplitude
+    free = np.flatnonzero(~(rising | _transient(amplitude, residual, noise)))
+    if free.size == 0:
+        return high, high
+    # Once free, the decay goes on to the stretch's end; a block before the next
+    # excitation that already holds its start is left to it.
+    return low + int(free[0]), high
+
+
+def _transient(amplitude, residual, noise):
+    """Blocks whose residuals, for their amplitude, are _TRANSIENT_FACTOR times those of
+    the blocks within _AHEAD after them that swing at least _SIMILAR of their amplitude
+    (a harmonic or a period that changes with amplitude is alike there; a strike's other
+    modes, a hand letting go are not). Where the amplitude falls faster, no judgement."""
+    count = amplitude.size
+    ratio = residual / np.maximum(amplitude, 1e-300)
+    padded_ratio = np.concatenate((ratio[1:], np.full(_AHEAD, np.nan)))
+    padded_amplitude = np.concatenate((amplitude[1:], np.zeros(_AHEAD)))
+    windows = np.lib.stride_tricks.sliding_window_view
+    ahead = windows(padded_ratio, _AHEAD)[:count]
+    alike = windows(padded_amplitude, _AHEAD)[:count] >= _SIMILAR * amplitude[:, None]
+    enough = np.count_nonzero(alike, axis=1) >= _MIN_ALIKE
+    typical = _masked_median(ahead, alike)
+    return enough & (residual > _TRANSIENT_FACTOR * typical * amplitude + noise)
+
+
+def _masked_median(values, mask):
+    """The median of ``values`` along axis 1 where ``mask``, row by row (NaN where none)."""
+    masked = np.where(mask, values, np.inf)
+    counts = np.count_nonzero(mask, axis=1)
+    ordered = np.sort(masked, axis=1)
+    rows = np.arange(values.shape[0])
+    half = np.maximum(counts - 1, 0) // 2
+    middle = 0.5 * (ordered[rows, half] + ordered[rows, np.maximum(counts, 1) // 2])
+    return np.where(counts > 0, middle, np.nan)
+
+
+def _why(blocks, low, free):
+    """Why the blocks ``low:free`` before a free decay are left out."""
+    peak = low + int(np.argmax(blocks.amplitude[low:free + 1]))
+    if peak >= free:  # the largest swing is the decay's: what came before rose to it
+        quiet = blocks.amplitude[low:free].max() < 0.1 * blocks.amplitude[free]
+        return "rest" if quiet else "rising"
+    return "transient"
+
+
+def _why_not_run(blocks, low, high, swing, sigma):
+    if swing <= 2 * _LATER_Z * sigma:
+        return "rest"
+    return "brief ring"
+
+
+_WORDS = {"rest": "a rest or hold before the release",
+          "rising": "the swing still rising (a release or a drive)",
+          "transient": "the excitation's transient (a strike's other modes, a hand letting go)",
+          "brief ring": "a brief ring too short or weak for a decay (a push, a knock)"}
+
+
+def _notes(runs, left_out, block_time):
+    notes = [f"free decay located: {len(runs)} run{'s' * (len(runs) > 1)} "
+             + ", ".join(f"from t = {a:.6g} to {b:.6g}" for a, b in runs)
+             + " (use --start and --end to choose by hand)"]
+    for a, b, why in left_out:
+        notes.append(f"left out t = {a:.6g} to {b:.6g}: {_WORDS[why]}")
+    return notes
