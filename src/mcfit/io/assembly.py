@@ -215,6 +215,8 @@ def _choice_notes(table, time_index, signal_index, others, time_chosen, signal_c
             other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
         most = (", the component that oscillates most"
                 if _axis_siblings(table, signal_index, others) else "")
+        if table.loudest == signal_index:
+            most = ", the channel that swings most"
         notes.append(f"signal column: {_describe(table, signal_index)}{most} (chosen "
                      f"automatically; use `signal_col` to change{other})")
 

@@ -204,7 +204,10 @@ def _choose_signal(table, time_index, ignored, columns):
                    if len(primary) > 1 else primary)
     order = oscillating + [i for i in primary if i not in oscillating] + secondary
     axes = [order[0]] + _axis_siblings(table, order[0], order[1:])
-    if len(axes) > 1:  # a vector sensor: the component that swings most
+    if table.loudest in order:  # audio channels: the one that swings most
+        order.remove(table.loudest)
+        order.insert(0, table.loudest)
+    elif len(axes) > 1:  # a vector sensor: the component that swings most
         strongest = max(axes, key=lambda i: _oscillation_size(sample[i].values))
         order.remove(strongest)
         order.insert(0, strongest)

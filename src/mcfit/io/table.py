@@ -44,6 +44,9 @@ class _Table:
         self.reader = reader      # callable(0-based indices) -> DataFrame of float64, in order
         self.notes = notes
         self.complete = complete  # the sample is every row, as the reader would give it
+        self.rate = None          # the sample rate a file gives (WAV audio), in Hz
+        self.loudest = None       # the channel that swings most, of a multi-channel file
+        self.origins = {}         # 0-based clock-time columns -> their first clock reading
 
 
 def _text_table(name, head, path, tail=b"", tidied=None):
