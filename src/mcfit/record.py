@@ -40,6 +40,12 @@ class Record:
     run : str or None
         Which of the file's runs side by side this is (``"Run 7"``); None for a file of
         one run.
+    time_origin : dict or None
+        What t = 0 is when the time column is a clock read as seconds from its first
+        reading: ``{"clock": "unix epoch seconds", "value": 1406730000.123, "utc":
+        "2014-07-30T14:20:00.123Z", "column": "Epoch"}`` (``clock`` also "unix epoch
+        milliseconds", "date and time" or "time of day", whose ``value`` is the text read;
+        ``utc`` None where the clock does not say its zone). None for elapsed time.
     """
 
     source: str
@@ -54,6 +60,7 @@ class Record:
     columns: tuple[str, ...] = ()
     notes: tuple[str, ...] = field(default=())
     run: str | None = None
+    time_origin: dict | None = None
 
     @property
     def name(self) -> str:
@@ -77,7 +84,8 @@ class Record:
                 "domain": self.domain, "samples": int(self.t.size),
                 "time_column": self.time_column, "signal_column": self.signal_column,
                 "time_unit": self.time_unit, "signal_unit": self.signal_unit,
-                "columns": list(self.columns), "notes": list(self.notes)}
+                "columns": list(self.columns), "notes": list(self.notes),
+                "time_origin": None if self.time_origin is None else dict(self.time_origin)}
 
 
 def coefficient_units(signal_unit, per) -> dict:

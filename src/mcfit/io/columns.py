@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcfit.errors import InputError, UsageError
+from mcfit.io.clocks import epoch_scale
 from mcfit.io.layouts import LAYOUTS
 from mcfit.io.table import _describe
 from mcfit.io.times import _timestamp_problem
@@ -170,7 +171,9 @@ def _choose_time(table, rate, columns):
                  and np.all(np.diff(sample[i].values[np.isfinite(sample[i].values)]) >= 0)]
     if rate is not None:
         return None, named + [i for i in increasing + repeating if i not in named]
-    for candidates in (named, cycle_named):
+    # A logger's epoch clock without a telling name is the time, not its sample counter.
+    clocks = [i for i in increasing if epoch_scale(sample[i].values) is not None]
+    for candidates in (named, clocks, cycle_named):
         if candidates:
             return candidates[0], []
     if increasing:

@@ -204,7 +204,8 @@ def _plain_table(source, has_names, notes, clock, transposed):
                 and sample.shape[0] > 0 and not np.isnan(sample.iat[0, -1])
                 and _lines_alike(source.text, lines[:data_start], sample_text))
     table = _Table(name, names, sample, reader, notes, complete=complete)
-    table.clock, table.transposed, table.decimal = clock, transposed, decimal
+    table.clock, table.transposed, table.decimal = list(clock), transposed, decimal
+    table.origins = clock if isinstance(clock, dict) else {}
     table.token_lines, table.sep = lines[data_start:data_start + 2000], sep
     return table
 
