@@ -347,7 +347,8 @@ def _column(value):
                    "why not, fitted envelope) to this CSV file.")
 @click.option("--start", type=float, metavar="T",
               help="Fit only from this time in seconds (or cycle number) on, e.g. after the "
-                   "release.")
+                   "release; times as the record gives them, a clock (Unix epoch, date and "
+                   "time) as seconds from its first sample.")
 @click.option("--end", type=float, metavar="T",
               help="Fit only up to this time in seconds (or cycle number).")
 @click.option("--run", type=click.IntRange(min=1), metavar="N",

@@ -161,19 +161,22 @@ def _oscillates(values):
 def _choose_time(table, rate, columns):
     sample = table.sample
     named = [i for i in columns if _is_time_name(table.names[i])]
-    # Elapsed seconds are the better time when the file also holds clock times.
-    named = [i for i in named if i not in table.clock] + [i for i in named if i in table.clock]
     cycle_named = [i for i in columns if _base_name(table.names[i])[0] in _CYCLE_NAMES]
     increasing = [i for i in columns if _strictly_increasing(sample[i].values)]
+    # Elapsed seconds are the better time when the file also holds clock times, and a
+    # logger's epoch clock, even without a telling name, better than its sample counter
+    # and its clock-time text.
+    clocks = [i for i in increasing if i not in named and i not in table.clock
+              and epoch_scale(sample[i].values) is not None]
+    named = ([i for i in named if i not in table.clock] + clocks
+             + [i for i in named if i in table.clock])
     # Logger timestamps that repeat: a time column, but an unusable one.
     repeating = [i for i in columns if i not in increasing
                  and _timestamp_problem(sample[i].values) is not None
                  and np.all(np.diff(sample[i].values[np.isfinite(sample[i].values)]) >= 0)]
     if rate is not None:
         return None, named + [i for i in increasing + repeating if i not in named]
-    # A logger's epoch clock without a telling name is the time, not its sample counter.
-    clocks = [i for i in increasing if epoch_scale(sample[i].values) is not None]
-    for candidates in (named, clocks, cycle_named):
+    for candidates in (named, cycle_named):
         if candidates:
             return candidates[0], []
     if increasing:

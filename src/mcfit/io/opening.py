@@ -54,7 +54,7 @@ def _open_table(source, sheet):
         raise too_large(name, "the file", info.st_size, MAX_BYTES)
     suffix = path.suffix.lower()
     if suffix in _REFUSED_EXTENSIONS:
-        raise InputError(f"unsupported file type '{suffix}' for {name}; use one of "
+        raise InputError(f"unsupported file type '{suffix}' for {name}; use "
                          f"{supported_types()} (or export the data as delimited text).")
     try:
         with open(path, "rb") as handle:
