@@ -173,6 +173,24 @@ def serial_logs(monitor: Path, logger: Path) -> None:
                                                 for t, c in zip(run["t"], counts)))
 
 
+# The struck tuning fork of tuning_fork_wav: its truth, which tests check the fit against.
+FORK = {"frequency": 440.0, "q": 2000.0, "amplitude": 0.5, "rate": 8000, "duration": 3.0,
+        "noise": 2e-4, "seed": 14}
+
+
+def tuning_fork_wav(path: Path) -> None:
+    """A struck 440 Hz tuning fork at a microphone, Q = 2000 (b = pi*f/Q = 0.6912 1/s):
+    3 s of 16-bit mono PCM at 8 kHz, half full scale at the strike, a little noise."""
+    from scipy.io import wavfile
+
+    f, rate = FORK["frequency"], FORK["rate"]
+    t = np.arange(round(FORK["duration"] * rate)) / rate
+    b = np.pi * f / FORK["q"]
+    x = FORK["amplitude"] * np.exp(-b * t) * np.cos(2 * np.pi * f * t)
+    x += np.random.default_rng(FORK["seed"]).normal(0.0, FORK["noise"], t.size)
+    wavfile.write(path, rate, np.round(x * 32768).astype(np.int16))
+
+
 def tempfile_csv():
     """A context giving the name of a CSV file in a temporary folder."""
     import contextlib
@@ -210,6 +228,7 @@ def main() -> None:
     logger_pro(HERE / "logger_pro.txt")
     tracker(HERE / "tracker.txt")
     serial_logs(HERE / "serial_monitor.txt", HERE / "serial_logger.csv")
+    tuning_fork_wav(HERE / "tuning_fork.wav")
 
 
 if __name__ == "__main__":

@@ -58,6 +58,8 @@ class Analysis:
         if record is not None:
             out["columns"] = {"time": record["time_column"], "signal": record["signal_column"]}
             out["input"] = record["kind"]
+            # What t = 0 is when the time column is a clock (None for elapsed time).
+            out["time_origin"] = record["time_origin"]
         if turning is not None:
             out["turning_points_excluded"] = turning["excluded"]
             out["period_drift"] = turning["period_drift"]

@@ -21,16 +21,16 @@ from multiprocessing.connection import wait
 from pathlib import Path
 
 from mcfit.errors import InputError, McfitError, UsageError
-from mcfit.files import describe_os_error, display_name
+from mcfit.files import describe_os_error, display_name, record_extensions, supported_types
 
 __all__ = ["FitOptions", "FileResult", "Inputs", "find_inputs", "expand_inputs",
            "run_jobs",
            "plot_path_for", "available_cpus"]
 
 # What a directory's records are called (any file named on the command line is read by
-# its content): text, gzip-compressed text, LabVIEW and logger files, spreadsheets.
-RECORD_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat", ".lvm", ".log", ".xlsx", ".xlsm",
-                     ".xls", ".ods", ".csv.gz", ".tsv.gz", ".txt.gz", ".dat.gz")
+# its content): text, gzip-compressed text, LabVIEW and logger files, spreadsheets, audio
+# (mcfit.files.RECORD_TYPES).
+RECORD_EXTENSIONS = record_extensions()
 
 # Signals that stop a whole run. Workers ignore them: the parent keeps the finished records
 # and then ends the workers itself (a terminal's Ctrl-C reaches every process of the group).
@@ -135,7 +135,7 @@ def find_inputs(arguments) -> Inputs:
             if not found:
                 held = f"; it holds {'; '.join(skipped)}" if skipped else ""
                 raise UsageError(f"directory {display_name(argument)} holds no record files "
-                                 f"({', '.join(RECORD_EXTENSIONS)}){held}; name the files "
+                                 f"({supported_types()}){held}; name the files "
                                  "instead.")
             notes.extend(f"{display_name(argument)}: left out {what}." for what in skipped)
             files.extend(found)

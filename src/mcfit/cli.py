@@ -21,7 +21,7 @@ import click
 from mcfit import __version__
 from mcfit.errors import (ClosedOutputError, InputError, McfitError, UsageError,
                           escape_controls, printable)
-from mcfit.files import Output, is_regular_or_new
+from mcfit.files import Output, is_regular_or_new, supported_types
 from mcfit.options import (BENCH_SECTIONS, CRITERIA, DOMAINS, FIT_METHODS, FORMATS, KINDS,
                            PANELS, SAMPLES_PER_CYCLE, SIMULATE_METHODS, check_fit_options,
                            check_plot_name, check_read_options, for_command_line,
@@ -264,9 +264,9 @@ def _rounded_up(value, digits=4):
 
 _FIT_HELP = """Fit the damping law to each record FILE and report a, b, c and Q(t).
 
-FILE is a CSV/TSV/TXT/DAT or Excel record, - for stdin, or a directory (its record
-files). For each record mcfit finds the turning points, fits dy/dt = -c - b*y - a*y^2
-to their amplitudes, keeps the damping regimes the record supports (fluid a,
+FILE is a record file (delimited text, a workbook or WAV audio; types: %s),
+- for stdin, or a directory (its record files). For each record mcfit finds the
+turning points, fits dy/dt = -c - b*y - a*y^2 to their amplitudes, keeps the damping regimes the record supports (fluid a,
 hysteretic b, Coulomb c) and reports Q initial/final/min/max. The word "fit" may be
 left out: mcfit FILE... does the same.
 
@@ -292,7 +292,7 @@ Examples:
   mcfit lab.txt --signal-col 2 --model ab
   mcfit peaks.csv --input turning-points --domain cycle
   mcfit swing.csv --pendulum --degrees
-"""
+""" % supported_types()
 
 
 def _column(value):
@@ -347,7 +347,8 @@ def _column(value):
                    "why not, fitted envelope) to this CSV file.")
 @click.option("--start", type=float, metavar="T",
               help="Fit only from this time in seconds (or cycle number) on, e.g. after the "
-                   "release.")
+                   "release; times as the record gives them, a clock (Unix epoch, date and "
+                   "time) as seconds from its first sample.")
 @click.option("--end", type=float, metavar="T",
               help="Fit only up to this time in seconds (or cycle number).")
 @click.option("--run", type=click.IntRange(min=1), metavar="N",

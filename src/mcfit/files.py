@@ -18,7 +18,39 @@ from pathlib import Path
 from mcfit.errors import ClosedOutputError, OutputError, escape_controls
 
 __all__ = ["temporary_beside", "replace_atomically", "is_regular_or_new", "Output",
-           "display_name", "describe_os_error"]
+           "display_name", "describe_os_error", "RECORD_TYPES", "record_type",
+           "record_extensions", "supported_types"]
+
+# The records mcfit reads, by extension: the reader (mcfit.io.opening dispatches on it)
+# and its extensions. Text is also read gzip-compressed (.csv.gz); a file named on the
+# command line is read by its content whatever its extension, a directory yields the files
+# with these extensions. Every list of supported types in a message comes from here.
+RECORD_TYPES = (
+    ("text", (".csv", ".tsv", ".txt", ".dat", ".lvm", ".log")),
+    ("workbook", (".xlsx", ".xlsm", ".xls", ".ods")),
+    ("audio", (".wav",)),
+)
+COMPRESSED_SUFFIX = ".gz"
+
+
+def record_type(suffix):
+    """The reader of a file extension (``".wav"`` -> ``"audio"``), or None."""
+    suffix = suffix.lower()
+    return next((kind for kind, suffixes in RECORD_TYPES if suffix in suffixes), None)
+
+
+def record_extensions() -> tuple:
+    """Every extension of a record file, the gzip-compressed text ones included."""
+    plain = tuple(s for _, suffixes in RECORD_TYPES for s in suffixes)
+    text = dict(RECORD_TYPES)["text"]
+    return plain + tuple(s + COMPRESSED_SUFFIX for s in text)
+
+
+def supported_types() -> str:
+    """The supported types in words, for messages and help: ``.csv .tsv ... .wav, and
+    .gz of the text ones``."""
+    listed = " ".join(s for _, suffixes in RECORD_TYPES for s in suffixes)
+    return f"{listed}, and {COMPRESSED_SUFFIX} of the text ones"
 
 # The escapes a reader knows from Python's own strings; other controls are shown \xNN.
 _NAMED_ESCAPES = {"\n": "\\n", "\r": "\\r", "\t": "\\t"}

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["number", "numbers", "q_summary", "candidates", "before_warnings"]
+__all__ = ["number", "numbers", "q_summary", "candidates", "before_warnings", "time_text",
+           "period_resolution"]
 
 _Q_KEYS = ("initial", "final", "min", "max")
 
@@ -49,3 +50,23 @@ def before_warnings(out: dict, entries: dict) -> dict:
     out.update(entries)
     out["warnings"] = warnings
     return out
+
+
+def period_resolution(period):
+    """The time a printed time must resolve: a hundredth of ``period`` (None: unknown)."""
+    period = number(period)
+    return period / 100.0 if period is not None and period > 0 else None
+
+
+def time_text(value, resolution=None, digits=6) -> str:
+    """A time for a note or report: ``digits`` significant digits, more where they are
+    needed to resolve ``resolution`` (a hundredth of the period, say) at the time's
+    magnitude, so that a late time of a fast oscillation stays readable; "-" for none."""
+    value = number(value)
+    if value is None:
+        return "-"
+    resolution = number(resolution)
+    if resolution is not None and resolution > 0 and value != 0:
+        needed = math.floor(math.log10(abs(value))) - math.floor(math.log10(resolution)) + 1
+        digits = min(max(digits, needed), 17)
+    return f"{value:.{digits}g}"

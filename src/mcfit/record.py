@@ -46,6 +46,12 @@ class Record:
     whole : tuple of two ndarrays or None
         The record's times and signal as read, where ``t`` and ``x`` are the free decay
         found in them (for the figure); None where they are the whole record.
+    time_origin : dict or None
+        What t = 0 is when the time column is a clock read as seconds from its first
+        reading: ``{"clock": "unix epoch seconds", "value": 1406730000.123, "utc":
+        "2014-07-30T14:20:00.123Z", "column": "Epoch"}`` (``clock`` also "unix epoch
+        milliseconds", "date and time" or "time of day", whose ``value`` is the text read;
+        ``utc`` None where the clock does not say its zone). None for elapsed time.
     """
 
     source: str
@@ -62,6 +68,7 @@ class Record:
     run: str | None = None
     left_out: tuple = ()
     whole: tuple | None = field(default=None, repr=False)
+    time_origin: dict | None = None
 
     @property
     def name(self) -> str:
@@ -87,7 +94,8 @@ class Record:
                 "time_unit": self.time_unit, "signal_unit": self.signal_unit,
                 "columns": list(self.columns), "notes": list(self.notes),
                 "left_out": [{"start": a, "end": b, "why": why}
-                             for a, b, why in self.left_out]}
+                             for a, b, why in self.left_out],
+                "time_origin": None if self.time_origin is None else dict(self.time_origin)}
 
 
 def coefficient_units(signal_unit, per) -> dict:

@@ -11,6 +11,7 @@ import statistics
 from collections import Counter
 
 from mcfit.fit.models import NONE, POWER, REGIME_NAMES, TERMS, regime_name
+from mcfit.plain import period_resolution, time_text
 from mcfit.record import coefficient_units
 
 __all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS", "csv_columns",
@@ -264,6 +265,11 @@ def to_text(data) -> str:
         source_columns = (f"time = {columns['time'] or 'sample index / rate'}, "
                           f"signal = {columns['signal']}")
         lines.append(f"  input:           {data['input']}, columns {source_columns}")
+    origin = data.get("time_origin")
+    if origin:
+        zone = f" = {origin['utc']}" if origin.get("utc") else ""
+        lines.append(f"  time origin:     t = 0 s is {origin['column']} = {origin['value']}"
+                     f"{zone} ({origin['clock']}); times are seconds from there")
     excluded = data.get("turning_points_excluded") or {}
     excluded_text = ", ".join(f"{n} {reason}" for reason, n in excluded.items()) or "none"
     lines.append(f"  turning points:  {data['turning_points']} used; left out: {excluded_text}")
@@ -290,7 +296,7 @@ def to_text(data) -> str:
     params = data["params"]
     unit = data.get("params_units", "per second")
     lines.append(f"  parameters ({unit}):")
-    t0 = _g(data["t0"], ".4g")
+    t0 = time_text(data["t0"], period_resolution(data["period"]), digits=4)
     at = f"{t0} s" if domain == "time" else f"n = {t0}"
     labels = {"y0": f"y0 (amplitude at {at})",
               "a": "a (fluid)", "b": f"b ({regime_name('b', data.get('damping_form'))})",

@@ -102,6 +102,8 @@ def read_records(source, *, time_col=None, signal_col=None, sheet=None, rate=Non
                        signal_col=signal_col, angle_from=angle_from)
     rate = _checked_rate(rate)
     table = _open_table(source, sheet)
+    if table.rate is not None:
+        rate = _file_rate(table, rate, time_col)
     # The column heuristics (spans, slopes, steps) overflow to inf or NaN for values near
     # the float64 limit, which then fail their tests as they should; the turning-point
     # search rejects such values with a message.
@@ -110,6 +112,19 @@ def read_records(source, *, time_col=None, signal_col=None, sheet=None, rate=Non
         return [_build_record(table, time_col, signal_col, rate, kind, domain,
                               run=run_of_file, angle_from=angle_from)
                 for run_of_file in runs]
+
+
+def _file_rate(table, rate, time_col):
+    """The sample rate of a file that gives one (WAV audio); ``rate`` or ``time_col`` that
+    would contradict it are refused."""
+    if rate is not None and rate != table.rate:
+        raise UsageError(f"{table.name} is WAV audio sampled at {table.rate:g} Hz, which sets "
+                         f"its time; `rate` ({rate:g} Hz) does not apply. Leave it out.",
+                         option="rate")
+    if time_col is not None:
+        raise UsageError(f"{table.name} is WAV audio: its time is the file's sample rate, and "
+                         "it has no time column. Leave `time_col` out.", option="time_col")
+    return table.rate
 
 
 def _checked_rate(rate):

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from mcfit.errors import InputError
+from mcfit.io.clocks import rebased_epoch
 from mcfit.io.columns import _Run, _axis_siblings, _chosen_columns, _resolve_column
 from mcfit.io.table import _describe, _read_columns
 from mcfit.io.times import _repair_times, _timestamp_problem
@@ -71,6 +72,11 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
                   signal_col is None and angle_from is None, notes)
     if domain == "time" and time_unit is not None:
         t, time_unit = _in_seconds(t, time_unit, notes)
+    origin = None
+    if domain == "time" and rate is None and time_index is not None:
+        origin = table.origins.get(time_index)
+        if origin is None:
+            t, time_unit, origin = rebased_epoch(t, time_unit, table.names[time_index], notes)
 
     t = np.ascontiguousarray(t, dtype=np.float64)
     x = np.ascontiguousarray(x, dtype=np.float64)
@@ -79,7 +85,8 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
     return Record(source=table.name, t=t, x=x, kind=chosen_kind, domain=domain,
                   time_column=table.names[time_index] if time_index is not None else None,
                   signal_column=signal_label, time_unit=time_unit, signal_unit=signal_unit,
-                  columns=tuple(table.names), notes=tuple(notes), run=run.label)
+                  columns=tuple(table.names), notes=tuple(notes), run=run.label,
+                  time_origin=origin)
 
 
 def _check_rows(table, time_col, signal_col, rate):
@@ -215,6 +222,8 @@ def _choice_notes(table, time_index, signal_index, others, time_chosen, signal_c
             other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
         most = (", the component that oscillates most"
                 if _axis_siblings(table, signal_index, others) else "")
+        if table.loudest == signal_index:
+            most = ", the channel that swings most"
         notes.append(f"signal column: {_describe(table, signal_index)}{most} (chosen "
                      f"automatically; use `signal_col` to change{other})")
 

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mcfit.errors import InputError, UsageError
+from mcfit.io.clocks import epoch_scale
 from mcfit.io.layouts import LAYOUTS
 from mcfit.io.table import _describe
 from mcfit.io.times import _timestamp_problem
@@ -160,10 +161,15 @@ def _oscillates(values):
 def _choose_time(table, rate, columns):
     sample = table.sample
     named = [i for i in columns if _is_time_name(table.names[i])]
-    # Elapsed seconds are the better time when the file also holds clock times.
-    named = [i for i in named if i not in table.clock] + [i for i in named if i in table.clock]
     cycle_named = [i for i in columns if _base_name(table.names[i])[0] in _CYCLE_NAMES]
     increasing = [i for i in columns if _strictly_increasing(sample[i].values)]
+    # Elapsed seconds are the better time when the file also holds clock times, and a
+    # logger's epoch clock, even without a telling name, better than its sample counter
+    # and its clock-time text.
+    clocks = [i for i in increasing if i not in named and i not in table.clock
+              and epoch_scale(sample[i].values) is not None]
+    named = ([i for i in named if i not in table.clock] + clocks
+             + [i for i in named if i in table.clock])
     # Logger timestamps that repeat: a time column, but an unusable one.
     repeating = [i for i in columns if i not in increasing
                  and _timestamp_problem(sample[i].values) is not None
@@ -204,7 +210,10 @@ def _choose_signal(table, time_index, ignored, columns):
                    if len(primary) > 1 else primary)
     order = oscillating + [i for i in primary if i not in oscillating] + secondary
     axes = [order[0]] + _axis_siblings(table, order[0], order[1:])
-    if len(axes) > 1:  # a vector sensor: the component that swings most
+    if table.loudest in order:  # audio channels: the one that swings most
+        order.remove(table.loudest)
+        order.insert(0, table.loudest)
+    elif len(axes) > 1:  # a vector sensor: the component that swings most
         strongest = max(axes, key=lambda i: _oscillation_size(sample[i].values))
         order.remove(strongest)
         order.insert(0, strongest)

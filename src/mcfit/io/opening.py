@@ -11,12 +11,14 @@ import sys
 from pathlib import Path
 
 from mcfit.errors import InputError, UsageError
-from mcfit.io.excel import _CFB_SIGNATURE, _EXCEL_ENGINES, _excel_table
+from mcfit.files import RECORD_TYPES, record_type, supported_types
+from mcfit.io.excel import _CFB_SIGNATURE, _excel_table
 from mcfit.io.limits import MAX_BYTES, read_at_most, too_large
 from mcfit.io.table import _SNIFF_BYTES, _text_table
+from mcfit.io.wav import _wav_table, is_wav
 
-TEXT_EXTENSIONS = (".csv", ".tsv", ".txt", ".dat")
-EXCEL_EXTENSIONS = (".xlsx", ".xlsm")
+TEXT_EXTENSIONS = dict(RECORD_TYPES)["text"]
+EXCEL_EXTENSIONS = (".xlsx", ".xlsm")  # zip workbooks, read by openpyxl
 
 
 def _open_table(source, sheet):
@@ -52,8 +54,8 @@ def _open_table(source, sheet):
         raise too_large(name, "the file", info.st_size, MAX_BYTES)
     suffix = path.suffix.lower()
     if suffix in _REFUSED_EXTENSIONS:
-        raise InputError(f"unsupported file type '{suffix}' for {name}; use .csv, .tsv, .txt, "
-                         ".dat or .xlsx (or export the data as delimited text).")
+        raise InputError(f"unsupported file type '{suffix}' for {name}; use "
+                         f"{supported_types()} (or export the data as delimited text).")
     try:
         with open(path, "rb") as handle:
             head = handle.read(_SNIFF_BYTES)
@@ -64,11 +66,17 @@ def _open_table(source, sheet):
                 tail = handle.read()
     except OSError as exc:
         raise InputError(f"cannot read {name}: {exc.strerror}. Check its permissions.") from None
-    # The content decides, not the extension: a workbook or a gzip file by its signature,
-    # anything else (.lvm, .log, no extension) as text.
+    # The content decides, not the extension: a workbook, WAV or gzip file by its
+    # signature, anything else (.lvm, .log, no extension) as text; a .wav is audio or
+    # damaged.
+    kind = record_type(suffix)
     if head.startswith(_GZIP_SIGNATURE):
         return _gzip_table(path, name, sheet)
-    if suffix in _EXCEL_ENGINES and not (suffix in EXCEL_EXTENSIONS
+    if kind == "audio" or is_wav(head):
+        if sheet is not None:
+            raise UsageError(f"`sheet` applies to Excel files only, and {name} is WAV audio.")
+        return _wav_table(path, name)
+    if kind == "workbook" and not (suffix in EXCEL_EXTENSIONS
                                          and head.startswith(_CFB_SIGNATURE)):
         return _excel_table(path, name, sheet, suffix)
     if suffix in EXCEL_EXTENSIONS or head.startswith(_ZIP_SIGNATURE):
@@ -88,7 +96,7 @@ _TAIL_BYTES = 1 << 14
 _REFUSED_EXTENSIONS = (".json", ".xml", ".html", ".htm", ".pdf", ".png", ".jpg", ".jpeg",
                        ".gif", ".svg", ".doc", ".docx", ".ppt", ".pptx", ".numbers", ".mat",
                        ".npy", ".npz", ".h5", ".hdf5", ".zip", ".7z", ".rar", ".mp4", ".mov",
-                       ".avi", ".wav", ".mp3", ".cmbl", ".py", ".ipynb")
+                       ".avi", ".mp3", ".cmbl", ".py", ".ipynb")
 
 
 def _gzip_table(path, name, sheet):

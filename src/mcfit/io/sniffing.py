@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 
-from mcfit.io.tokens import (_CLOCK, _COMMA_DECIMAL, _FORTRAN_EXPONENT, _ISO_DATE_TIME,
+from mcfit.io.tokens import (_CLOCK, _COMMA_DECIMAL, _DATE, _FORTRAN_EXPONENT, _ISO_DATE_TIME,
                              _MAX_ROWS_AS_DATA, _NUMBER_TOKEN, _SPECIAL_TOKENS, _is_number,
                              _split)
 
@@ -78,7 +78,7 @@ def _token_kind(token, decimal_comma):
         return "num" if decimal_comma or "," not in token else "text"
     if token.lower() in _SPECIAL_TOKENS:
         return "num"
-    if _CLOCK.match(token) or _ISO_DATE_TIME.match(token):
+    if _CLOCK.match(token) or _ISO_DATE_TIME.match(token) or _DATE.match(token):
         return "clock"
     return "text"
 

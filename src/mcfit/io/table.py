@@ -44,6 +44,9 @@ class _Table:
         self.reader = reader      # callable(0-based indices) -> DataFrame of float64, in order
         self.notes = notes
         self.complete = complete  # the sample is every row, as the reader would give it
+        self.rate = None          # the sample rate a file gives (WAV audio), in Hz
+        self.loudest = None       # the channel that swings most, of a multi-channel file
+        self.origins = {}         # 0-based clock-time columns -> their first clock reading
 
 
 def _text_table(name, head, path, tail=b"", tidied=None):
@@ -201,7 +204,8 @@ def _plain_table(source, has_names, notes, clock, transposed):
                 and sample.shape[0] > 0 and not np.isnan(sample.iat[0, -1])
                 and _lines_alike(source.text, lines[:data_start], sample_text))
     table = _Table(name, names, sample, reader, notes, complete=complete)
-    table.clock, table.transposed, table.decimal = clock, transposed, decimal
+    table.clock, table.transposed, table.decimal = list(clock), transposed, decimal
+    table.origins = clock if isinstance(clock, dict) else {}
     table.token_lines, table.sep = lines[data_start:data_start + 2000], sep
     return table
 

@@ -14,7 +14,8 @@ import re
 from mcfit.io.sniffing import (_LAYOUT_LINES, _Layout, _MIN_VALUES_IN_A_ROW, _classify_line,
                                _find_layout, _header_fields, _is_note, _layout_is_plain,
                                _surely_plain, _token_kind)
-from mcfit.io.tokens import (_CLOCK, _FORTRAN_EXPONENT, _ISO_DATE_TIME, _KNOWN_UNITS,
+from mcfit.io.clocks import text_clock_origin
+from mcfit.io.tokens import (_CLOCK, _DATE, _FORTRAN_EXPONENT, _ISO_DATE_TIME, _KNOWN_UNITS,
                              _MAX_ROWS_AS_DATA, _NUMBER_TOKEN, _SPECIAL_TOKENS, _base_name, _count,
                              _is_time_name)
 
@@ -167,14 +168,15 @@ def _tidy_columns(name, layout, notes):
     if any(_FORTRAN_EXPONENT.match(f) for r in rows[:200] for f in r):
         notes.append("Fortran D exponents (1.0D-03) read as E exponents")
     columns = [[(r[k] if k < len(r) else "") for r in rows] for k in range(width)]
-    clock = []
+    _join_dates(columns, names, notes)
+    clock = {}
     for k, column in enumerate(columns):
         if any(_CLOCK.match(v) or _ISO_DATE_TIME.match(v) for v in column[:50]):
             seconds, first = _clock_seconds(column)
             if seconds is not None:
                 columns[k] = seconds
-                clock.append(k)
                 label = (names[k] if names and names[k] else f"column {k + 1}")
+                clock[k] = text_clock_origin(first, label)
                 notes.append(f"clock times in '{label}' read as seconds after the first "
                              f"({first})")
                 if names is not None and _base_name(names[k])[1] is None:
@@ -187,6 +189,22 @@ def _tidy_columns(name, layout, notes):
                              for k, n in enumerate(names)))
     out.extend("\t".join(values) for values in zip(*columns))
     return "\n".join(out) + "\n", notes, clock, False, names is not None
+
+
+def _join_dates(columns, names, notes):
+    """A column of dates before one of times of day: each time gets its date (a clock
+    that passes midnight stays right), and the dates are left out of the numbers."""
+    for k in range(len(columns) - 1):
+        dates, times = columns[k], columns[k + 1]
+        if not (any(_DATE.match(v) for v in dates[:50])
+                and all(not v or _DATE.match(v) for v in dates)
+                and all(not v or _CLOCK.match(v) for v in times)):
+            continue
+        columns[k + 1] = [f"{d.replace('/', '-').replace('.', '-')}T{v}" if d and v else v
+                          for d, v in zip(dates, times)]
+        columns[k] = [""] * len(dates)
+        label = names[k] if names and names[k] else f"column {k + 1}"
+        notes.append(f"dates in '{label}' joined to the times of day after them")
 
 
 def _normal_number(token, decimal_comma):

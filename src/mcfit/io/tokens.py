@@ -11,7 +11,8 @@ from mcfit.io.layouts import LAYOUTS
 # Labels of a time column: general ones, and those of the export layouts.
 _TIME_NAMES = {"time", "t", "times", "tempo", "zeit", "temps", "tiempo", "seconds", "sec",
                "timestamp", "stamp", "elapsed", "elapsed time", "time elapsed", "time_elapsed",
-               "elapsed_time", "clock", "time stamp", "time_s",
+               "elapsed_time", "clock", "time stamp", "time_s", "epoch", "epoch time",
+               "epoch_time", "unixtime", "unix time", "unix_time", "posix time",
                *(name for layout in LAYOUTS for name in layout.time_names),
                *(name for layout in LAYOUTS for name, _ in layout.time_units)}
 # Time labels whose unit the program that writes them implies.
@@ -51,6 +52,8 @@ _FORTRAN_EXPONENT = re.compile(r"^[+-]?(\d+(\.\d*)?|\.\d+)[dD][+-]?\d+$")
 _CLOCK = re.compile(r"^(\d{1,2}:)?\d{1,2}:\d{2}([.,]\d+)?$")
 _ISO_DATE_TIME = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{1,2}:\d{2}(:\d{2}([.,]\d+)?)?"
                             r"(Z|[+-]\d{2}:?\d{2})?$")
+# A date alone, as a logger writes it in a column before the time of day.
+_DATE = re.compile(r"^\d{4}([-/.])\d{2}\1\d{2}$")
 # Rows as data: at most this many rows, each at least this many values long.
 _MAX_ROWS_AS_DATA = 4
 _KNOWN_UNITS = set(_SECONDS_PER_UNIT) | {

@@ -169,7 +169,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
         m, free, floor_start, columns)
 
     # Notes, the tail in the noise, the scatter, and the checks.
-    notes += _exclusion_notes(release_time, free, release_cause, reasons)
+    notes += _exclusion_notes(release_time, free, release_cause, reasons, crests)
     floor_time = float("nan") if floor_start is None else float(m.centres[floor_start])
     floor_time, floor_level, tail = _tail_notes(crests, y, sigma_y, reasons, floor_time,
                                                 floor_level, phase_lost)
@@ -221,11 +221,11 @@ def _coarse_spectrum(tf, xf, dt, steps):
     return spectral_period, noise, xf, removed, notes
 
 
-def _exclusion_notes(release_time, free, release_cause, reasons):
+def _exclusion_notes(release_time, free, release_cause, reasons, crests=()):
     """Notes on the crests excluded before the release and as clipped."""
     notes = []
     if np.isfinite(release_time):
-        notes.append(_release_note(release_time, free, release_cause))
+        notes.append(_release_note(release_time, free, release_cause, crests))
     if np.any(reasons == "clipped"):
         n_clip = int(np.count_nonzero(reasons == "clipped"))
         notes.append(f"{n_clip} clipped (saturated) extrema excluded")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from mcfit.errors import RecordError, TooFewTurningPoints
-from mcfit.turning.common import SAMPLES_PER_CYCLE, _median, _robust_sigma, _running_median
+from mcfit.turning.common import (SAMPLES_PER_CYCLE, _median, _robust_sigma,
+                                  _running_median, _time_at)
 from mcfit.turning.release import _release_at_rise, _rise
 from mcfit.turning.result import MIN_TURNING_POINTS
 
@@ -142,7 +143,7 @@ def _cut_at_stop(centres, y, sigma_y, reasons):
     stopped = np.arange(y.size) >= first
     count = int(np.count_nonzero(stopped & (reasons == "")))
     reasons[stopped & (reasons == "")] = "after the decay"
-    return [f"the motion stops by t = {centres[first]:.6g}: the amplitude there is "
+    return [f"the motion stops by t = {_time_at(centres[first], centres)}: the amplitude there is "
             f"{y[first]:.3g}, {-y[first] / sigma_y[first]:.3g} sigma below zero (the mass "
             f"rests off centre, held by friction, or the record ends its swings); the {count} "
             "turning points from there are left out"]
@@ -185,8 +186,8 @@ def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
             notes.append(note)
         else:
             end = _end_of_decay(smooth, dip, noise, sigma_y[index])
-            low = f"{smooth[end]:.3g} at t = {centres[index[end]]:.6g}"
-            high = f"{smooth[k]:.3g} at t = {centres[index[k]]:.6g}"
+            low = f"{smooth[end]:.3g} at t = {_time_at(centres[index[end]], centres)}"
+            high = f"{smooth[k]:.3g} at t = {_time_at(centres[index[k]], centres)}"
             if end == 0:
                 raise RecordError(
                     f"the amplitude in {source} rises from {low} to {high} with no decay "
@@ -203,7 +204,7 @@ def _cut_at_rise(centres, y, sigma_y, reasons, source, floor=0.0):
         return release, notes, []
     said, start = ending
     left_out = (f"the {np.count_nonzero(reasons == 'after the decay')} turning points from "
-                f"t = {start:.6g} are left out and the decay before them is fitted")
+                f"t = {_time_at(start, centres)} are left out and the decay before them is fitted")
     if beat:
         return release, notes, [f"{said}: beating of two modes, or a disturbance; {left_out}. "
                                 "Excite one mode only, or check the record"]
@@ -223,7 +224,8 @@ def _check_growth(centres, y, sigma_y, index, source):
     if end > 1.3 * start and end - start > 5 * noise:
         raise RecordError(
             f"the oscillation in {source} grows (amplitude {start:.3g} at t = "
-            f"{centres[index[0]]:.4g} to {end:.3g} at t = {centres[index[-1]]:.4g}): this is "
+            f"{_time_at(centres[index[0]], centres)} to {end:.3g} at t = "
+            f"{_time_at(centres[index[-1]], centres)}): this is "
             "not a free decay. Check the record, or cut it to the decaying part.")
 
 

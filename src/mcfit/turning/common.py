@@ -26,6 +26,17 @@ _NORMAL_MAD = 0.6744897501960817
 _WIDE_MEDIAN = 64
 
 
+def _time_at(value, crests):
+    """A time of a note, with the digits that resolve a hundredth of the period at its
+    magnitude: the period is taken as twice the median spacing of the ``crests`` times
+    (turning points alternate), which errs towards more digits."""
+    from mcfit.plain import time_text
+    crests = np.asarray(crests, dtype=np.float64)
+    steps = np.diff(crests[np.isfinite(crests)])
+    spacing = _median(np.abs(steps)) if steps.size else float("nan")
+    return time_text(value, spacing / 50.0 if np.isfinite(spacing) and spacing > 0 else None)
+
+
 def _median(values):
     """np.median of a 1-D array (NaN if it holds a NaN or is empty), without its overhead:
     the middle order statistics by one partition."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.special import ndtri
 
-from mcfit.turning.common import _median, _running_median
+from mcfit.turning.common import _median, _running_median, _time_at
 from mcfit.turning.result import MIN_TURNING_POINTS
 
 # An amplitude below FLOOR_FACTOR times the floor level is dominated by the floor.
@@ -141,9 +141,10 @@ def _tail_notes(crests, y, sigma_y, reasons, floor_time, floor_level, phase_lost
     if np.isfinite(floor_time):
         notes = [f"noise floor at amplitude {floor_level:.3g}: "
                  f"{int(np.count_nonzero(reasons == 'noise floor'))} turning points from "
-                 f"t = {floor_time:.6g} excluded"]
+                 f"t = {_time_at(floor_time, crests)} excluded"]
         if phase_lost is not None and phase_lost < floor_time:
-            notes.append(f"the crest phase is lost in the noise from t = {phase_lost:.6g}: "
+            notes.append(f"the crest phase is lost in the noise from t = "
+                         f"{_time_at(phase_lost, crests)}: "
                          f"the record from there to the noise floor is not used")
         return floor_time, floor_level, notes
     cut = _sinks_below_noise(y, sigma_y, reasons == "")
@@ -155,11 +156,12 @@ def _tail_notes(crests, y, sigma_y, reasons, floor_time, floor_level, phase_lost
         return floor_time, floor_level, [
             f"noise floor: the oscillation is lost in the noise (amplitude sigma "
             f"{floor_level:.3g}); {int(in_floor.sum())} turning points from "
-            f"t = {floor_time:.6g} excluded"]
+            f"t = {_time_at(floor_time, crests)} excluded"]
     if phase_lost is not None:
         floor_level = float(_median(sigma_y[reasons == ""])) if np.any(reasons == "") \
             else 0.0
         return phase_lost, floor_level, [
-            f"noise floor: the crest phase is lost in the noise from t = {phase_lost:.6g} "
+            f"noise floor: the crest phase is lost in the noise from t = "
+            f"{_time_at(phase_lost, crests)} "
             f"(amplitude sigma {floor_level:.3g}); the record after it is not used"]
     return floor_time, floor_level, []

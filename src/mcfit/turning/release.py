@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mcfit.turning.common import _median, _robust_sigma
+from mcfit.turning.common import _median, _robust_sigma, _time_at
 from mcfit.turning.result import MIN_TURNING_POINTS
 
 # A record may start before the free decay: the oscillator held still, or driven or still
@@ -271,8 +271,8 @@ def _release_at_rise(times, smooth, k, noise, sigma, floor):
         return None
     dip = int(np.argmin(smooth[:k + 1]))
     release = float(times[k])
-    return release, (f"the free decay starts at t = {release:.6g}, where the amplitude "
-                     f"rises to its largest ({smooth[k]:.3g}) after falling to "
+    return release, (f"the free decay starts at t = {_time_at(release, times)}, where the "
+                     f"amplitude rises to its largest ({smooth[k]:.3g}) after falling to "
                      f"{smooth[dip]:.3g}: held, driven or disturbed before it; {k} turning "
                      "points before it left out")
 
@@ -291,7 +291,7 @@ def _rise(smooth, noise, sigma, floor):
     return None
 
 
-def _release_note(time, count, cause):
+def _release_note(time, count, cause, crests=()):
     excluded = (f"{count} turning point{'s' if count != 1 else ''} before it excluded"
                 if count else "no turning point before it")
-    return f"release at t = {time:.6g}: {excluded} ({cause})"
+    return f"release at t = {_time_at(time, crests)}: {excluded} ({cause})"

@@ -9,6 +9,7 @@ from scipy.fft import next_fast_len
 
 from mcfit.errors import RecordError
 from mcfit.hum import peak_frequency
+from mcfit.plain import period_resolution, time_text
 from mcfit.turning.common import _median, _robust_sigma
 
 # Longest stretch fed to the FFT for the coarse period and noise level.
@@ -49,7 +50,9 @@ def _gap_note(gaps, period):
     """Where the gaps are: the fit spans them with the turning points on both sides."""
     start, end = max(gaps, key=lambda g: g[1] - g[0])
     cycles = f", about {(end - start) / period:.3g} periods" if np.isfinite(period) else ""
-    where = f"from t = {start:.6g} to {end:.6g} ({end - start:.4g} time units{cycles})"
+    resolution = period_resolution(period) if np.isfinite(period) else None
+    where = (f"from t = {time_text(start, resolution)} to {time_text(end, resolution)} "
+             f"({end - start:.4g} time units{cycles})")
     if len(gaps) == 1:
         head = f"a gap in the record {where}"
     else:
