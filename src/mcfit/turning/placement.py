@@ -3,9 +3,9 @@ and its transient, up to a new excitation; a record excited more than once gives
 stretch (a run) each. numpy only, no I/O; linear in the record.
 
 The record is demodulated in blocks of about two periods at the frequency that lasts
-longest (docs/theory.md, "Where the free decay is"):
+longest:
 
-1. The steady frequency: the record is cut into about 24 stretches, each stretch's
+1. The steady frequency: the record is cut into 24 (or 12, or 6) stretches, each stretch's
    spectral peak is found, and the frequency held by the most stretches wins (a strike's
    loud transient lasts one stretch, the decay many); it is refined on the span of those
    stretches.
@@ -31,8 +31,10 @@ import numpy as np
 
 __all__ = ["Placement", "locate_free_decay"]
 
-# Stretches whose spectral peaks vote for the steady frequency, and the votes it needs.
-_STRETCHES = 24
+# Stretches whose spectral peaks vote for the steady frequency (fewer where it has fewer
+# than _MIN_PERIODS periods in one), and the votes it needs.
+_STRETCH_COUNTS = (24, 12, 6)
+_MIN_PERIODS = 4
 _MIN_VOTES = 3
 # Periods in one demodulation block, and the fewest samples in one.
 _BLOCK_PERIODS = 2.0
@@ -122,7 +124,7 @@ def locate_free_decay(t, x) -> Placement:
 
 
 def _placeable(t, x):
-    if t.size < _STRETCHES * 4 * _MIN_BLOCK_SAMPLES or not np.all(np.isfinite(x)):
+    if t.size < _STRETCH_COUNTS[0] * 4 * _MIN_BLOCK_SAMPLES or not np.all(np.isfinite(x)):
         return False
     steps = np.diff(t)
     return bool(np.all(steps > 0) and steps.max() <= 1.5 * steps.min()
@@ -131,19 +133,25 @@ def _placeable(t, x):
 
 def _steady_frequency(x, dt):
     """The frequency (Hz) that the most stretches of the record peak at, refined on their
-    span; None when no frequency holds _MIN_VOTES stretches."""
-    length = x.size // _STRETCHES
-    stretches = x[:length * _STRETCHES].reshape(_STRETCHES, length)
-    peaks, strong = _stretch_peaks(stretches)
-    votes = np.bincount(peaks[strong], minlength=length // 2 + 1)
-    # Neighbouring bins vote together: a line between two bins, or drifting a little.
-    pooled = votes + np.concatenate(([0], votes[:-1])) + np.concatenate((votes[1:], [0]))
-    best = int(np.argmax(pooled))
-    if pooled[best] < _MIN_VOTES or best < 2:
-        return None
-    held = np.flatnonzero(strong & (np.abs(peaks - best) <= 1))
-    span = x[held[0] * length:(held[-1] + 1) * length]
-    return _refined_peak(span, dt, (best - 1.5) / (length * dt), (best + 1.5) / (length * dt))
+    span; None when no frequency holds _MIN_VOTES stretches. Fewer, longer stretches are
+    tried where the winner has fewer than _MIN_PERIODS periods in a stretch."""
+    for count in _STRETCH_COUNTS:
+        length = x.size // count
+        stretches = x[:length * count].reshape(count, length)
+        peaks, strong = _stretch_peaks(stretches)
+        votes = np.bincount(peaks[strong], minlength=length // 2 + 1)
+        # Neighbouring bins vote together: a line between two bins, or drifting a little.
+        pooled = votes + np.concatenate(([0], votes[:-1])) + np.concatenate((votes[1:], [0]))
+        best = int(np.argmax(pooled))
+        if best < _MIN_PERIODS:
+            continue
+        if pooled[best] < _MIN_VOTES:
+            return None
+        held = np.flatnonzero(strong & (np.abs(peaks - best) <= 1))
+        span = x[held[0] * length:(held[-1] + 1) * length]
+        return _refined_peak(span, dt, (best - 1.5) / (length * dt),
+                             (best + 1.5) / (length * dt))
+    return None
 
 
 def _stretch_peaks(stretches):

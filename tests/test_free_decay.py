@@ -1,0 +1,155 @@
+"""Where the free decay is in a record as it was recorded: after a rest, a held push or a
+strike and its transient; several excitations as several runs; a release after steady
+swinging. Each record is made here with a known truth."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from mcfit import analyse
+from mcfit.cli import cli
+from mcfit.motion import simulate_record
+from mcfit.turning.placement import locate_free_decay
+
+
+def _ring(t, start, amplitude, frequency, rate, phase=np.pi / 2):
+    """A free decay exp(-rate*s)*cos(2*pi*f*s + phase) from ``start`` on, 0 before."""
+    s = t - start
+    return np.where(s >= 0, amplitude * np.exp(-rate * np.clip(s, 0, None))
+                    * np.cos(2 * np.pi * frequency * s + phase), 0.0)
+
+
+FORK = {"frequency": 439.0, "q": 2000.0, "rate": 8000.0}
+
+
+def _struck_fork(seed, strikes=(1.0,), duration=6.0):
+    """A tuning fork at 439 Hz (Q 2000) struck at each of ``strikes`` after a quiet
+    pre-trigger, each strike with a loud low thump (56 Hz) and a clang mode (2.6 kHz)
+    that die within about 0.15 s."""
+    t = np.arange(int(duration * FORK["rate"])) / FORK["rate"]
+    b = np.pi * FORK["frequency"] / FORK["q"]
+    x = np.zeros_like(t)
+    for strike in strikes:
+        x += _ring(t, strike, 1.0, FORK["frequency"], b)
+        x += _ring(t, strike, 6.0, 56.0, 25.0)
+        x += _ring(t, strike, 2.0, 2610.0, 40.0)
+    return t, x + np.random.default_rng(seed).normal(0, 1e-3, t.size), b
+
+
+def _within(fit, name, truth, z=3.0):
+    return abs(fit.values[name] - truth) <= z * fit.stderr[name]
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_strike_and_its_transient_are_left_out(seed):
+    t, x, b = _struck_fork(seed)
+    result = analyse(t, x)
+    assert result.status == "ok"
+    assert result.fit.model == "b" and _within(result.fit, "b", b)
+    assert result.turning.period == pytest.approx(1 / FORK["frequency"], rel=1e-4)
+    # The decay starts after the strike's other modes have died, not before the strike.
+    start = float(result.record.t[0])
+    assert 1.0 < start < 1.35
+    whys = [why for _, _, why in result.record.left_out]
+    assert whys == ["rest", "transient"]
+    assert result.to_dict()["release_time"] == pytest.approx(start)
+
+
+def test_a_fork_struck_twice_gives_two_runs(tmp_path):
+    t, x, b = _struck_fork(3, strikes=(0.5, 3.5))
+    path = tmp_path / "fork.csv"
+    np.savetxt(path, np.column_stack([t, x]), delimiter=",", header="t,x", comments="",
+               fmt="%.9g")
+    out = CliRunner().invoke(cli, [str(path), "--format", "json"])
+    assert out.exit_code == 0, out.output
+    rows = [json.loads(line) for line in out.output.splitlines()]
+    assert [row["run"] for row in rows] == ["Run 1", "Run 2"]
+    assert rows[0]["source"].endswith("fork.csv#Run 1")
+    for row, (low, high) in zip(rows, [(0.5, 3.5), (3.5, 6.0)]):
+        value, stderr = row["params"]["b"]["value"], row["params"]["b"]["stderr"]
+        assert row["model"] == "b" and abs(value - b) <= 3 * stderr
+        assert low < row["t0"] < low + 0.35
+    # --run picks one of the free decays; one not there is named.
+    second = CliRunner().invoke(cli, [str(path), "--format", "json", "--run", "2"])
+    [row] = [json.loads(line) for line in second.output.splitlines()]
+    assert row["run"] == "Run 2" and 3.5 < row["t0"] < 3.85
+    third = CliRunner().invoke(cli, [str(path), "--run", "3"])
+    assert third.exit_code != 0 and "run 3 not found" in third.output
+
+
+def _phone(seed, rest=0.85, rate=100.0, duration=120.0):
+    """A phone's gyroscope as a pendulum bob: held in the hand (a 7 Hz tremor) until
+    ``rest``, then swinging freely (period 1.6 s, b = 0.01, first swing 2.63 rad/s)."""
+    t = np.arange(int(duration * rate)) / rate
+    x = _ring(t, rest, 2.63, 0.62, 0.01, phase=-np.pi / 2)
+    x += np.where(t < rest, 0.05 * np.sin(2 * np.pi * 7 * t), 0.0)
+    return t, x + np.random.default_rng(seed).normal(0, 0.01, t.size)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_a_rest_before_the_release_is_left_out(seed):
+    t, x = _phone(seed)
+    result = analyse(t, x)
+    assert result.status == "ok" and result.fit.model == "b"
+    assert _within(result.fit, "b", 0.01)
+    # The fit starts at the release, to within a few samples, not inside the rest.
+    assert 0.85 <= result.record.t[0] < 0.92
+    assert result.fit.values["y0"] == pytest.approx(2.63, rel=0.01)
+
+
+def _held_push(seed, rate=200.0, hold=(5.0, 19.0), duration=200.0):
+    """A seismometer's mass pushed aside at 5 s (a brief ring while pushed), held there
+    until 19 s and released: a free decay of period 6 s, b = 0.004, amplitude 1e6
+    counts, with 60 Hz pickup of 2e3 counts and noise of 300."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(duration * rate)) / rate
+    pushed = np.clip((t - hold[0]) / 1.0, 0, 1) * 1e6
+    x = np.where(t < hold[1], pushed, 0.0)
+    x += np.where((t > hold[0]) & (t < hold[1]),
+                  1e5 * np.exp(-(t - hold[0]) / 1.5) * np.sin(2 * np.pi * 0.21 * (t - hold[0])),
+                  0.0)
+    x += _ring(t, hold[1], 1e6, 1 / 6.0, 0.004, phase=0.0)
+    x += 2e3 * np.sin(2 * np.pi * 60 * t + 0.3)
+    return t, x + rng.normal(0, 300, t.size)
+
+
+def test_a_held_push_is_left_out_and_the_decay_after_its_release_fitted():
+    t, x = _held_push(4)
+    result = analyse(t, x)
+    assert result.status == "ok" and result.fit.model == "b"
+    assert _within(result.fit, "b", 0.004)
+    assert 19.0 <= result.record.t[0] < 19.2
+    assert result.turning.period == pytest.approx(6.0, rel=1e-3)
+    assert [why for _, _, why in result.record.left_out][-1] == "rest"
+
+
+def test_a_record_that_decays_from_its_start_is_not_moved():
+    record = simulate_record(0.02, 0.03, 0.002, 1.0, 1.0, 60.0, 50.0, noise=0.005, rng=5)
+    placement = locate_free_decay(record.t, record.x)
+    assert not placement.moved and placement.runs == ((0.0, 60.0),)
+
+
+def _steady_then_free(seed, lead=1.5, rate=100.0, noise=1e-3):
+    """Fig. 20.19's law (a = b = 0.1, c = 0.01, y0 = 4, T = 0.5) released from a crest
+    after a drive has held the swing at y0 for ``lead`` seconds."""
+    free = simulate_record(0.1, 0.1, 0.01, 4.0, 0.5, 20.0, rate, method="accurate",
+                           rtol=1e-9)
+    n = int(round(lead * rate))
+    t = np.concatenate([(np.arange(n) - n) / rate, free.t]) + lead
+    x = np.concatenate([4.0 * np.cos(4 * np.pi * (np.arange(n) - n) / rate), free.x])
+    return t, x + np.random.default_rng(seed).normal(0, noise, t.size)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_a_release_after_steady_swinging_starts_after_its_straddling_crest(seed):
+    result = analyse(*_steady_then_free(seed))
+    fit = result.fit
+    assert result.turning.release_time == pytest.approx(1.5, abs=0.01)
+    assert result.turning.t[result.turning.used][0] > 1.7  # not the crest at the release
+    assert fit.model == "abc"
+    assert all(_within(fit, name, truth, z=2.6)
+               for name, truth in (("a", 0.1), ("b", 0.1), ("c", 0.01)))
