@@ -36,6 +36,8 @@ __all__ = ["Placement", "locate_free_decay"]
 _STRETCH_COUNTS = (24, 12, 6)
 _MIN_PERIODS = 4
 _MIN_VOTES = 3
+# Samples demodulated at a time (bounds the memory of a long record).
+_CHUNK_SAMPLES = 1 << 18
 # Periods in one demodulation block, and the fewest samples in one.
 _BLOCK_PERIODS = 2.0
 _MIN_BLOCK_SAMPLES = 8
@@ -192,24 +194,36 @@ class _Blocks:
 
 
 def _demodulated(t, x, frequency):
-    """Each block of about _BLOCK_PERIODS periods fitted by a line and one sinusoid."""
+    """Each block of about _BLOCK_PERIODS periods fitted by a line and one sinusoid, a
+    bounded number of blocks at a time."""
     dt = (t[-1] - t[0]) / (t.size - 1)
     size = max(_MIN_BLOCK_SAMPLES, int(round(_BLOCK_PERIODS / (frequency * dt))))
     count = x.size // size
     if count < 2 * MIN_BLOCKS:
         return None
-    shape = (count, size)
-    phase = 2 * np.pi * frequency * (t[:count * size] - t[0])
+    step = max(1, _CHUNK_SAMPLES // size)
+    parts = [_block_fits(t, x, frequency, size, first, min(first + step, count))
+             for first in range(0, count, step)]
+    return _Blocks(start=np.arange(count) * size,
+                   amplitude=np.concatenate([p[0] for p in parts]),
+                   residual=np.concatenate([p[1] for p in parts]), size=size)
+
+
+def _block_fits(t, x, frequency, size, first, stop):
+    """(amplitude, rms residual) of blocks ``first:stop`` of ``size`` samples."""
+    shape = (stop - first, size)
+    span = slice(first * size, stop * size)
+    phase = 2 * np.pi * frequency * (t[span] - t[0])
     tau = np.broadcast_to(np.linspace(-1.0, 1.0, size), shape)
     design = np.stack([np.ones(shape), tau, np.cos(phase).reshape(shape),
                        np.sin(phase).reshape(shape)], axis=-1)
-    values = x[:count * size].reshape(shape)
+    values = x[span].reshape(shape)
     normal = np.einsum("kni,knj->kij", design, design)
-    coefficients = np.linalg.solve(normal, np.einsum("kni,kn->ki", design, values)[..., None])[..., 0]
+    right = np.einsum("kni,kn->ki", design, values)[..., None]
+    coefficients = np.linalg.solve(normal, right)[..., 0]
     residual = values - np.einsum("kni,ki->kn", design, coefficients)
-    return _Blocks(start=np.arange(count) * size,
-                   amplitude=np.hypot(coefficients[:, 2], coefficients[:, 3]),
-                   residual=np.sqrt(np.mean(residual * residual, axis=1)), size=size)
+    return (np.hypot(coefficients[:, 2], coefficients[:, 3]),
+            np.sqrt(np.mean(residual * residual, axis=1)))
 
 
 def _placement(t, x, blocks, period):
