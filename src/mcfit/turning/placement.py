@@ -28,6 +28,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.fft import next_fast_len, rfft
+
+from mcfit.plain import period_resolution, time_text
 
 __all__ = ["Placement", "locate_free_decay"]
 
@@ -56,6 +59,8 @@ _TRANSIENT_FACTOR = 3.0
 _AHEAD = 64
 _SIMILAR = 0.7
 _MIN_ALIKE = 4
+# Blocks judged at a time when looking for the start of a free decay.
+_SCAN = 256
 # A still stretch swings by less than this share of the decay's first amplitude; the
 # signal has left it where it is this many times its band away from its level.
 _STILL_SHARE = 0.1
@@ -140,26 +145,28 @@ def _steady_frequency(x, dt):
     for count in _STRETCH_COUNTS:
         length = x.size // count
         stretches = x[:length * count].reshape(count, length)
-        peaks, strong = _stretch_peaks(stretches)
-        votes = np.bincount(peaks[strong], minlength=length // 2 + 1)
+        size = next_fast_len(length, real=True)
+        peaks, strong = _stretch_peaks(stretches, size)
+        votes = np.bincount(peaks[strong], minlength=size // 2 + 1)
         # Neighbouring bins vote together: a line between two bins, or drifting a little.
         pooled = votes + np.concatenate(([0], votes[:-1])) + np.concatenate((votes[1:], [0]))
         best = int(np.argmax(pooled))
-        if best < _MIN_PERIODS:
+        if best * length < _MIN_PERIODS * size:
             continue
         if pooled[best] < _MIN_VOTES:
             return None
         held = np.flatnonzero(strong & (np.abs(peaks - best) <= 1))
         span = x[held[0] * length:(held[-1] + 1) * length]
-        return _refined_peak(span, dt, (best - 1.5) / (length * dt),
-                             (best + 1.5) / (length * dt))
+        return _refined_peak(span, dt, (best - 1.5) / (size * dt), (best + 1.5) / (size * dt))
     return None
 
 
-def _stretch_peaks(stretches):
-    """(peak bin of each stretch, whether it stands well above the stretch's floor)."""
+def _stretch_peaks(stretches, size):
+    """(peak bin of each stretch's spectrum of ``size`` points, whether it stands well
+    above the stretch's floor)."""
     centred = stretches - stretches.mean(axis=1, keepdims=True)
-    power = np.abs(np.fft.rfft(centred * np.hanning(stretches.shape[1]), axis=1)) ** 2
+    centred *= np.hanning(stretches.shape[1])
+    power = np.abs(rfft(centred, n=size, axis=1)) ** 2
     power[:, :2] = 0.0  # the mean and drift, not an oscillation
     peaks = np.argmax(power, axis=1)
     top = power[np.arange(power.shape[0]), peaks]
@@ -170,8 +177,9 @@ def _stretch_peaks(stretches):
 def _refined_peak(span, dt, low, high):
     """The spectral peak of ``span`` between ``low`` and ``high`` Hz, interpolated."""
     centred = span - span.mean()
-    size = max(span.size, 4 * int(round(1.0 / (low * dt))) if low > 0 else span.size)
-    power = np.abs(np.fft.rfft(centred * np.hanning(span.size), n=size)) ** 2
+    size = next_fast_len(max(span.size, 4 * int(round(1.0 / (low * dt))) if low > 0
+                             else span.size), real=True)
+    power = np.abs(rfft(centred * np.hanning(span.size), n=size)) ** 2
     frequencies = np.fft.rfftfreq(size, dt)
     inside = np.flatnonzero((frequencies >= low) & (frequencies <= high))
     if inside.size == 0:
@@ -238,8 +246,7 @@ def _placement(t, x, blocks, period):
                   default=0.0)
     if largest == 0.0:
         return None
-    runs, left_out, notes = [], [], []
-    block_time = blocks.size * (t[1] - t[0])
+    runs, left_out = [], []
     for (low, high), (free, end) in zip(zip(edges[:-1], edges[1:]), stretches):
         begin, stop = _time(t, blocks, low), _time(t, blocks, high)
         swing = blocks.amplitude[free:end].max() if end > free else 0.0
@@ -257,7 +264,7 @@ def _placement(t, x, blocks, period):
                              _why_not_run(blocks, low, high, swing, amplitude_sigma)))
     if not left_out or not runs:
         return None
-    notes = _notes(runs, left_out, block_time)
+    notes = _notes(runs, left_out, period)
     return Placement(runs=tuple(runs), left_out=tuple(left_out), period=period,
                      notes=tuple(notes))
 
@@ -295,36 +302,38 @@ def _onsets(amplitude, sigma):
 
 
 def _free_stretch(blocks, low, high, sigma, noise):
-    """(first free block, end block) of the stretch of blocks ``low:high``."""
+    """(first free block, end block) of the stretch of blocks ``low:high``: the first
+    block that is neither still rising nor a transient, judged _SCAN blocks at a time."""
     amplitude, residual = blocks.amplitude[low:high], blocks.residual[low:high]
-    if amplitude.size == 0:
-        return low, low
     later = np.maximum.accumulate(amplitude[::-1])[::-1]  # the largest from each on
     later = np.concatenate((later[1:], [0.0]))
     rising = later > amplitude + _LATER_Z * sigma + _LATER_FRACTION * amplitude
-    free = np.flatnonzero(~(rising | _transient(amplitude, residual, noise)))
-    if free.size == 0:
-        return high, high
-    # Once free, the decay goes on to the stretch's end; a block before the next
-    # excitation that already holds its start is left to it.
-    return low + int(free[0]), high
+    for first in range(0, amplitude.size, _SCAN):
+        stop = min(first + _SCAN, amplitude.size)
+        free = np.flatnonzero(~(rising[first:stop]
+                                | _transient(amplitude, residual, noise, first, stop)))
+        if free.size:
+            return low + first + int(free[0]), high
+    return high, high
 
 
-def _transient(amplitude, residual, noise):
-    """Blocks whose residuals, for their amplitude, are _TRANSIENT_FACTOR times those of
-    the blocks within _AHEAD after them that swing at least _SIMILAR of their amplitude
-    (a harmonic or a period that changes with amplitude is alike there; a strike's other
-    modes, a hand letting go are not). Where the amplitude falls faster, no judgement."""
-    count = amplitude.size
+def _transient(amplitude, residual, noise, first, stop):
+    """Whether each block ``first:stop`` is a transient: its residuals, for its amplitude,
+    _TRANSIENT_FACTOR times those of the blocks within _AHEAD after it that swing at least
+    _SIMILAR of its amplitude (a harmonic or a period that changes with amplitude is alike
+    there; a strike's other modes, a hand letting go are not). Where the amplitude falls
+    faster, no judgement."""
+    count = stop - first
     ratio = residual / np.maximum(amplitude, 1e-300)
-    padded_ratio = np.concatenate((ratio[1:], np.full(_AHEAD, np.nan)))
-    padded_amplitude = np.concatenate((amplitude[1:], np.zeros(_AHEAD)))
+    padding = np.zeros(_AHEAD)
+    ahead_ratio = np.concatenate((ratio[first + 1:stop + _AHEAD], padding))
+    ahead_amplitude = np.concatenate((amplitude[first + 1:stop + _AHEAD], padding))
     windows = np.lib.stride_tricks.sliding_window_view
-    ahead = windows(padded_ratio, _AHEAD)[:count]
-    alike = windows(padded_amplitude, _AHEAD)[:count] >= _SIMILAR * amplitude[:, None]
+    own = amplitude[first:stop, None]
+    alike = windows(ahead_amplitude, _AHEAD)[:count] >= _SIMILAR * own
     enough = np.count_nonzero(alike, axis=1) >= _MIN_ALIKE
-    typical = _masked_median(ahead, alike)
-    return enough & (residual > _TRANSIENT_FACTOR * typical * amplitude + noise)
+    typical = _masked_median(windows(ahead_ratio, _AHEAD)[:count], alike)
+    return enough & (residual[first:stop] > _TRANSIENT_FACTOR * typical * own[:, 0] + noise)
 
 
 def _masked_median(values, mask):
@@ -359,10 +368,13 @@ _WORDS = {"rest": "a rest or hold before the release",
           "brief ring": "a brief ring too short or weak for a decay (a push, a knock)"}
 
 
-def _notes(runs, left_out, block_time):
+def _notes(runs, left_out, period):
+    def at(value):
+        return time_text(value, period_resolution(period))
+
     notes = [f"free decay located: {len(runs)} run{'s' * (len(runs) > 1)} "
-             + ", ".join(f"from t = {a:.6g} to {b:.6g}" for a, b in runs)
+             + ", ".join(f"from t = {at(a)} to {at(b)}" for a, b in runs)
              + " (use --start and --end to choose by hand)"]
     for a, b, why in left_out:
-        notes.append(f"left out t = {a:.6g} to {b:.6g}: {_WORDS[why]}")
+        notes.append(f"left out t = {at(a)} to {at(b)}: {_WORDS[why]}")
     return notes
