@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from mcfit import analyse
+from mcfit import analyse, analyse_file
 from mcfit.cli import cli
 from mcfit.motion import simulate_record
 from mcfit.turning.placement import locate_free_decay
@@ -44,19 +44,30 @@ def _within(fit, name, truth, z=3.0):
     return abs(fit.values[name] - truth) <= z * fit.stderr[name]
 
 
+def _lvm_one_column(path, x):
+    """A LabVIEW measurement file of one channel and no time column (as a sound card's
+    logger writes it): the rate must be given."""
+    header = ("LabVIEW Measurement\t\nWriter_Version\t2\nSeparator\tTab\n"
+              "Decimal_Separator\t.\n***End_of_Header***\t\n\nChannels\t1\n"
+              f"Samples\t{x.size}\n***End_of_Header***\t\nUntitled\n")
+    path.write_text(header + "\n".join(f"{v:.6f}" for v in x) + "\n")
+
+
 @pytest.mark.parametrize("seed", [1, 2])
-def test_a_strike_and_its_transient_are_left_out(seed):
+def test_a_strike_and_its_transient_are_left_out(tmp_path, seed):
     t, x, b = _struck_fork(seed)
-    result = analyse(t, x)
-    assert result.status == "ok"
-    assert result.fit.model == "b" and _within(result.fit, "b", b)
-    assert result.turning.period == pytest.approx(1 / FORK["frequency"], rel=1e-4)
+    path = tmp_path / "fork.lvm"
+    _lvm_one_column(path, x)
+    out = CliRunner().invoke(cli, [str(path), "--rate", "8000", "--format", "json"])
+    assert out.exit_code == 0, out.output
+    [row] = [json.loads(line) for line in out.output.splitlines()]
+    value, stderr = row["params"]["b"]["value"], row["params"]["b"]["stderr"]
+    assert row["model"] == "b" and abs(value - b) <= 3 * stderr
+    assert row["period"] == pytest.approx(1 / FORK["frequency"], rel=1e-4)
     # The decay starts after the strike's other modes have died, not before the strike.
-    start = float(result.record.t[0])
-    assert 1.0 < start < 1.35
-    whys = [why for _, _, why in result.record.left_out]
-    assert whys == ["rest", "transient"]
-    assert result.to_dict()["release_time"] == pytest.approx(start)
+    assert 1.0 < row["release_time"] < 1.35 and row["t0"] >= row["release_time"]
+    assert [part["why"] for part in row["left_out"]] == ["rest", "transient"]
+    assert row["left_out"][1]["end"] == row["release_time"]
 
 
 def test_a_fork_struck_twice_gives_two_runs(tmp_path):
@@ -81,19 +92,28 @@ def test_a_fork_struck_twice_gives_two_runs(tmp_path):
     assert third.exit_code != 0 and "run 3 not found" in third.output
 
 
-def _phone(seed, rest=0.85, rate=100.0, duration=120.0):
-    """A phone's gyroscope as a pendulum bob: held in the hand (a 7 Hz tremor) until
-    ``rest``, then swinging freely (period 1.6 s, b = 0.01, first swing 2.63 rad/s)."""
+def _phone(path, seed, rest=0.85, rate=100.0, duration=120.0):
+    """A phyphox gyroscope export of a phone used as a pendulum bob: held in the hand (a
+    7 Hz tremor) until ``rest``, then swinging freely about its z axis (period 1.6 s,
+    b = 0.01, first swing 2.63 rad/s); x and y hold only noise."""
+    rng = np.random.default_rng(seed)
     t = np.arange(int(duration * rate)) / rate
-    x = _ring(t, rest, 2.63, 0.62, 0.01, phase=-np.pi / 2)
-    x += np.where(t < rest, 0.05 * np.sin(2 * np.pi * 7 * t), 0.0)
-    return t, x + np.random.default_rng(seed).normal(0, 0.01, t.size)
+    z = _ring(t, rest, 2.63, 0.62, 0.01, phase=-np.pi / 2)
+    z += np.where(t < rest, 0.05 * np.sin(2 * np.pi * 7 * t), 0.0)
+    z += rng.normal(0, 0.01, t.size)
+    x, y = rng.normal(0, 0.01, (2, t.size))
+    rows = np.column_stack([t, x, y, z, np.sqrt(x * x + y * y + z * z)])
+    np.savetxt(path, rows, delimiter=",", fmt="%.9E", comments="", header=(
+        '"Time (s)","Gyroscope x (rad/s)","Gyroscope y (rad/s)","Gyroscope z (rad/s)",'
+        '"Absolute (rad/s)"'))
 
 
 @pytest.mark.parametrize("seed", [1, 2, 3])
-def test_a_rest_before_the_release_is_left_out(seed):
-    t, x = _phone(seed)
-    result = analyse(t, x)
+def test_a_rest_before_the_release_is_left_out(tmp_path, seed):
+    path = tmp_path / "Raw Data.csv"
+    _phone(path, seed)
+    result = analyse_file(str(path))
+    assert result.record.signal_column == "Gyroscope z (rad/s)"
     assert result.status == "ok" and result.fit.model == "b"
     assert _within(result.fit, "b", 0.01)
     # The fit starts at the release, to within a few samples, not inside the rest.
@@ -117,14 +137,24 @@ def _held_push(seed, rate=200.0, hold=(5.0, 19.0), duration=200.0):
     return t, x + rng.normal(0, 300, t.size)
 
 
-def test_a_held_push_is_left_out_and_the_decay_after_its_release_fitted():
+def test_a_held_push_is_left_out_and_the_decay_after_its_release_fitted(tmp_path):
     t, x = _held_push(4)
-    result = analyse(t, x)
-    assert result.status == "ok" and result.fit.model == "b"
-    assert _within(result.fit, "b", 0.004)
-    assert 19.0 <= result.record.t[0] < 19.2
-    assert result.turning.period == pytest.approx(6.0, rel=1e-3)
-    assert [why for _, _, why in result.record.left_out][-1] == "rest"
+    path = tmp_path / "logger.csv"
+    epoch = 1406730000.0 + t
+    lines = ["Sample,Time,Laser"] + [f"{i},{e:.3f},{int(round(v)):+08d}"
+                                     for i, (e, v) in enumerate(zip(epoch, x))]
+    path.write_text("\n".join(lines) + "\n")
+    out = CliRunner().invoke(cli, [str(path), "--format", "json"])
+    assert out.exit_code == 0, out.output
+    [row] = [json.loads(line) for line in out.output.splitlines()]
+    value, stderr = row["params"]["b"]["value"], row["params"]["b"]["stderr"]
+    assert row["columns"] == {"time": "Time", "signal": "Laser"}
+    assert row["model"] == "b" and abs(value - 0.004) <= 3 * stderr
+    # Seconds from the record's start, not from the epoch: the release at 19 s.
+    assert 19.0 <= row["release_time"] < 19.2
+    assert row["period"] == pytest.approx(6.0, rel=1e-3)
+    assert [part["why"] for part in row["left_out"]][-1] == "rest"
+    assert row["time_origin"]["value"] == pytest.approx(1406730000.0)
 
 
 def test_a_record_that_decays_from_its_start_is_not_moved():
