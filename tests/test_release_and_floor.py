@@ -63,8 +63,10 @@ def test_a_held_start_is_excluded_and_the_fit_starts_at_the_release(seed, struck
     assert not np.any(points.used & (points.t < 3.0))
     before = np.array(points.excluded_reason) == "before release"
     assert np.all(points.t[before] < 3.0)
-    assert any(n.startswith("release at t = ") and "signal held still" in n
-               for n in points.notes)
+    # Found before the turning points, where the signal leaves its still level.
+    assert any(n.startswith("left out t = 0 to ") and "a rest or hold before the release" in n
+               for n in analysis.record.notes)
+    assert analysis.record.left_out[0][2] == "rest"
     _assert_law_recovered(analysis.fit)
 
 
@@ -176,8 +178,9 @@ def test_a_decay_into_white_noise_is_cut_where_it_is_lost():
     points = find_turning_points(t, _noisy(10.0 * np.exp(-0.1 * t) * np.cos(2 * np.pi * t),
                                            2, 0.1))
     sigma_y = np.median(points.sigma[points.used])
-    assert 40.0 < points.noise_floor_time < 75.0
-    assert 10.0 * np.exp(-0.1 * points.noise_floor_time) < 3 * sigma_y
+    assert 35.0 < points.noise_floor_time < 75.0
+    # Cut where the crest phase is no longer known to 0.1 rad: a few amplitude sigmas.
+    assert 10.0 * np.exp(-0.1 * points.noise_floor_time) < 10 * sigma_y
     assert not np.any(points.used & (points.t > points.noise_floor_time))
 
 

@@ -76,26 +76,26 @@ def test_noise_does_not_create_false_extrema(rng):
     assert np.all(points.sign[1:] != points.sign[:-1])
 
 
-def test_decay_into_white_noise_is_followed_until_lost(rng):
-    # The crests are kept, as projections onto the crest phase, while a group of them still
-    # shows the oscillation; only the pure-noise tail after that is excluded.
+def test_decay_into_white_noise_is_followed_while_its_phase_is_known(rng):
+    # The crests are kept, as projections onto the crest phase, while that phase is known
+    # to 0.1 rad; the faint tail after it, which carries little on the decay and where a
+    # noise crest can slip the phase, is excluded.
     law = (1.0, 0.0, 0.1, 0.0)
     t, x = waveform(50, cycles=80, noise=0.01, law=law, rng=rng)
     points = find_turning_points(t, x)
     sigma_y = np.median(points.sigma[points.used])
-    assert amplitude(points.noise_floor_time, *law) < 2 * sigma_y
+    assert 3 * sigma_y < amplitude(points.noise_floor_time, *law) < 10 * sigma_y
     assert points.noise_floor_time < 75
-    assert any("noise" in note for note in points.notes)
+    assert any("crest phase is lost" in note for note in points.notes)
     used = points.used
-    assert np.any(points.y[used] < 0)  # noise about a vanishing envelope, kept signed
     z = (points.y[used] - amplitude(points.t[used], *law)) / points.sigma[used]
     assert np.all(np.abs(z) < 5)
-    assert abs(np.mean(z)) < 4 / np.sqrt(z.size)  # unbiased down into the noise
+    assert abs(np.mean(z)) < 4 / np.sqrt(z.size)  # unbiased down to the last crest kept
 
 
 def test_projections_are_unbiased_near_the_noise(rng):
     # Magnitudes of two-parameter fits are biased upwards near the noise (Rician); the
-    # projections onto the smoothed crest phase are not.
+    # projections onto the smoothed crest phase are not, down to the faintest kept.
     law = (1.0, 0.0, 0.1, 0.0)
     z = []
     for _ in range(10):
@@ -103,12 +103,32 @@ def test_projections_are_unbiased_near_the_noise(rng):
         points = find_turning_points(t, x)
         used = points.used
         truth = amplitude(points.t[used], *law)
-        low = truth < 3 * points.sigma[used]
+        low = truth < 10 * points.sigma[used]
         z.append(((points.y[used] - truth) / points.sigma[used])[low])
     z = np.concatenate(z)
-    assert z.size > 100
+    assert z.size > 50
     assert abs(np.mean(z)) < 3 / np.sqrt(z.size)
     assert np.std(z) == pytest.approx(1.0, abs=0.15)
+
+
+def test_a_long_ringdown_keeps_no_crest_whose_phase_has_slipped():
+    # Q = 1e4, 5e4 cycles at 20 samples a cycle into noise 1e-3: the crests are followed
+    # until the amplitude is a few times the noise, not into it, where the smoothed phase
+    # slips by up to a radian and the projections come out low (a decay that looks as if
+    # it sped up at small amplitude: a false Coulomb term).
+    rate, b = 20.0, np.pi / 1e4
+    t = np.arange(50000 * 20) / rate
+    rng = np.random.default_rng(12)
+    x = np.exp(-b * t) * np.cos(2 * np.pi * t + 0.3) + rng.normal(0, 1e-3, t.size)
+    points = find_turning_points(t, x)
+    used = points.used
+    truth = np.exp(-b * points.t[used])
+    z = (points.y[used] - truth) / points.sigma[used]
+    faint = truth < 20 * points.sigma[used]
+    assert faint.sum() > 500 and abs(np.mean(z[faint])) < 4 / np.sqrt(faint.sum())
+    assert np.min(truth / points.sigma[used]) > 4
+    crest = (np.rint((2 * np.pi * points.t[used] + 0.3) / np.pi) * np.pi - 0.3) / (2 * np.pi)
+    assert np.max(np.abs(points.t[used] - crest)) * 2 * np.pi < 0.5  # rad
 
 
 def test_the_last_crests_of_a_record_ending_near_the_noise_are_unbiased(rng):

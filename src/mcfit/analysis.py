@@ -65,8 +65,6 @@ class Analysis:
             out["period_drift"] = turning["period_drift"]
             # Where the free decay starts, when the record begins held, driven or settling.
             out["release_time"] = turning["release_time"]
-            if out["release_time"] is None and _placed_start(self.record):
-                out["release_time"] = float(self.record.t[0])
             out["notes"] = (record["notes"] if record else []) + turning["notes"]
         elif record is not None:
             out["notes"] = record["notes"]
@@ -216,10 +214,14 @@ def _per_cycle(params, domain, turning):
                 for part in ("value", "stderr")} for k in TERMS}
 
 
-def _placed_start(record) -> bool:
-    """Whether the free decay was found to start after the record's first sample."""
-    return record is not None and any(
-        end == float(record.t[0]) for _, end, _ in record.left_out)
+def _with_placed_release(turning, record):
+    """``turning`` with the release where the free decay was found to start after the
+    record's first sample (:func:`free_decay_runs`), unless it found a later one."""
+    start = float(record.t[0]) if record.t.size else math.nan
+    placed = any(end == start for _, end, _ in record.left_out)
+    if not placed or math.isfinite(turning.release_time):
+        return turning
+    return replace(turning, release_time=start)
 
 
 def free_decay_runs(record) -> list:
@@ -651,7 +653,7 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
         if start is None and end is None:
             record = free_decay_runs(record)[0]
         record = crop_record(record, start, end)
-        turning = turning_points_of(record)
+        turning = _with_placed_release(turning_points_of(record), record)
     except McfitError as error:
         few = (isinstance(error, TooFewTurningPoints) and bootstrap == 0
                and _waveform_fit_possible(record, pendulum, method))

@@ -16,6 +16,9 @@ _PHASE_HALF_WIDTH = 10
 # Beyond this phase variance (rad**2) a crest's phase is mostly noise: its projection's
 # bias is corrected no further.
 _LARGEST_PHASE_VARIANCE = 1.0
+# Crests whose smoothed phase is known to this variance (rad**2; 0.1 rad) are used; from
+# the first where it is not (a running median), the phase is lost in the noise.
+_KEPT_PHASE_VARIANCE = 0.01
 # Crests whose phase is known to 0.1 rad (inverse variance 100 rad**-2) are numbered
 # reliably by their spacing; the others are numbered against them (_renumbered).
 _RELIABLE_PHASE_WEIGHT = 100.0
@@ -41,6 +44,11 @@ def _projected_crests(samples, m, period, line, decay, limit):
     crests, crest_signs, phase_variance, phase_lost = _crest_sequence(
         m.crest_times[decay], m.signs[decay], half[decay], weights[decay], limit)
     del weights
+    kept = _phase_kept(phase_variance)
+    if kept < crests.size:  # from here on, the phase is not known well enough
+        phase_lost = float(crests[kept])
+        crests, crest_signs, phase_variance = (crests[:kept], crest_signs[:kept],
+                                               phase_variance[:kept])
     in_decay = np.zeros(m.centres.size, dtype=bool)
     in_decay[decay] = True
     reliable = m.measured & in_decay & (m.magnitude > _RELIABLE_SNR * m.magnitude_sigma)
@@ -324,6 +332,20 @@ def _crest_sequence(times, signs, half, weights, limit):
     crest_signs = np.where(grid % 2 == 0, first_sign, -first_sign).astype(signs.dtype)
     ordered = np.concatenate([[True], np.diff(smooth) > 0])
     return smooth[ordered], crest_signs[ordered], variance[ordered], phase_lost
+
+
+def _phase_kept(variance):
+    """The number of crests from the first whose phase is known: up to the first from
+    which the running median of the phase variance passes _KEPT_PHASE_VARIANCE, after
+    it was below (a faint tail, where a noise crest can slip the phase by a radian and
+    the bias correction no longer holds; the crests beyond carry little on the decay).
+    All of them where the phase is never known that well (a faint record throughout)."""
+    typical = _running_median(np.nan_to_num(variance, nan=0.0), _ENVELOPE_CRESTS)
+    known = np.flatnonzero(typical <= _KEPT_PHASE_VARIANCE)
+    if known.size == 0:
+        return variance.size
+    lost = np.flatnonzero(typical[known[0]:] > _KEPT_PHASE_VARIANCE)
+    return int(known[0] + lost[0]) if lost.size else variance.size
 
 
 def _renumbered(numbers, times, signs, weights, reliable, first_sign):

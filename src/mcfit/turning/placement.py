@@ -39,6 +39,9 @@ __all__ = ["Placement", "locate_free_decay"]
 _STRETCH_COUNTS = (24, 12, 6)
 _MIN_PERIODS = 4
 _MIN_VOTES = 3
+# A stretch's spectral line counts where it stands this many times over the median of its
+# spectrum (pure noise's highest bin of 10^4 stands about 13 times over).
+_STRONG_LINE = 30.0
 # Samples demodulated at a time (bounds the memory of a long record).
 _CHUNK_SAMPLES = 1 << 18
 # Periods in one demodulation block, and the fewest samples in one.
@@ -65,6 +68,11 @@ _SCAN = 256
 # signal has left it where it is this many times its band away from its level.
 _STILL_SHARE = 0.1
 _DEPARTURE_FACTOR = 3.0
+# The noise after a decay is left out where it is more than this share of the record
+# (judged over windows of _QUIET_WINDOW blocks, swinging above _QUIET_Z amplitude sigmas).
+_QUIET_SHARE = 0.3
+_QUIET_WINDOW = 32
+_QUIET_Z = 4.0
 # A run needs this many free blocks, and this share of the largest run's amplitude.
 MIN_BLOCKS = 3
 MIN_SHARE = 0.25
@@ -80,7 +88,8 @@ class Placement:
         Start and end time of each free decay, in time order (the end is the last
         sample's time for the last run).
     left_out : tuple of (float, float, str)
-        The stretches left out, with why ("rest", "transient", "rising", "brief ring").
+        The stretches left out, with why ("rest", "transient", "rising", "brief ring",
+        "noise").
     period : float
         The steady period found (NaN when the record was not placed).
     notes : tuple of str
@@ -146,14 +155,19 @@ def _steady_frequency(x, dt):
         length = x.size // count
         stretches = x[:length * count].reshape(count, length)
         size = next_fast_len(length, real=True)
-        peaks, strong = _stretch_peaks(stretches, size)
+        peaks, contrast = _stretch_peaks(stretches, size)
+        strong = contrast > _STRONG_LINE
         votes = np.bincount(peaks[strong], minlength=size // 2 + 1)
         # Neighbouring bins vote together: a line between two bins, or drifting a little.
         pooled = votes + np.concatenate(([0], votes[:-1])) + np.concatenate((votes[1:], [0]))
         best = int(np.argmax(pooled))
+        if pooled[best] < _MIN_VOTES and strong.any():
+            # A decay that sinks into a long noise tail holds few stretches: the one
+            # whose line stands highest above its floor.
+            best = int(peaks[np.argmax(contrast)])
         if best * length < _MIN_PERIODS * size:
             continue
-        if pooled[best] < _MIN_VOTES:
+        if not strong.any():
             return None
         held = np.flatnonzero(strong & (np.abs(peaks - best) <= 1))
         span = x[held[0] * length:(held[-1] + 1) * length]
@@ -162,8 +176,8 @@ def _steady_frequency(x, dt):
 
 
 def _stretch_peaks(stretches, size):
-    """(peak bin of each stretch's spectrum of ``size`` points, whether it stands well
-    above the stretch's floor)."""
+    """(peak bin of each stretch's spectrum of ``size`` points, its power over the
+    median of the stretch's spectrum)."""
     centred = stretches - stretches.mean(axis=1, keepdims=True)
     centred *= np.hanning(stretches.shape[1])
     power = np.abs(rfft(centred, n=size, axis=1)) ** 2
@@ -171,7 +185,7 @@ def _stretch_peaks(stretches, size):
     peaks = np.argmax(power, axis=1)
     top = power[np.arange(power.shape[0]), peaks]
     floor = np.median(power[:, 2:], axis=1)
-    return peaks, top > 30.0 * floor
+    return peaks, top / np.maximum(floor, 1e-300)
 
 
 def _refined_peak(span, dt, low, high):
@@ -248,25 +262,45 @@ def _placement(t, x, blocks, period):
         return None
     runs, left_out = [], []
     for (low, high), (free, end) in zip(zip(edges[:-1], edges[1:]), stretches):
-        begin, stop = _time(t, blocks, low), _time(t, blocks, high)
         swing = blocks.amplitude[free:end].max() if end > free else 0.0
-        if end - free >= MIN_BLOCKS and swing >= MIN_SHARE * largest:
-            first = _time(t, blocks, free)
-            if free > low:
-                why = _why(blocks, low, free)
-                departure = None if why == "transient" else _departure(
-                    t, x, blocks, low, free, period)
-                first, why = (departure, "rest") if departure is not None else (first, why)
-                left_out.append((begin, first, why))
-            runs.append((first, stop if high < blocks.amplitude.size else float(t[-1])))
-        elif high > low:
-            left_out.append((begin, stop if high < blocks.amplitude.size else float(t[-1]),
-                             _why_not_run(blocks, low, high, swing, amplitude_sigma)))
+        if end - free < MIN_BLOCKS or swing < MIN_SHARE * largest:
+            if high > low:
+                left_out.append((_time(t, blocks, low), _time(t, blocks, high),
+                                 _why_not_run(swing, amplitude_sigma)))
+            continue
+        first = _time(t, blocks, free)
+        if free > low:
+            why = _why(blocks, low, free)
+            departure = None if why == "transient" else _departure(
+                t, x, blocks, low, free, period)
+            first, why = (departure, "rest") if departure is not None else (first, why)
+            left_out.append((_time(t, blocks, low), first, why))
+        quiet = _quiet_from(blocks, free, high, amplitude_sigma)
+        if quiet is not None:
+            left_out.append((_time(t, blocks, quiet), _time(t, blocks, high), "noise"))
+        runs.append((first, _time(t, blocks, high if quiet is None else quiet)))
     if not left_out or not runs:
         return None
     notes = _notes(runs, left_out, period)
     return Placement(runs=tuple(runs), left_out=tuple(left_out), period=period,
                      notes=tuple(notes))
+
+
+def _quiet_from(blocks, free, high, sigma):
+    """The block from which a decay ``free:high`` has long sunk into the noise, where that
+    noise is more than _QUIET_SHARE of the record, else None: the last block where half
+    of the next _QUIET_WINDOW swing above _QUIET_Z amplitude sigmas, and a quarter of
+    the decay's length (at least _QUIET_WINDOW blocks) beyond it for the floor's stage."""
+    above = (blocks.amplitude[free:high] > _QUIET_Z * sigma).astype(float)
+    if above.size < 2 * _QUIET_WINDOW:
+        return None
+    share = np.convolve(above, np.ones(_QUIET_WINDOW) / _QUIET_WINDOW, mode="valid")
+    swinging = np.flatnonzero(share >= 0.5)
+    if swinging.size == 0:
+        return None
+    last = int(swinging[-1]) + _QUIET_WINDOW
+    quiet = free + last + max(_QUIET_WINDOW, last // 4)
+    return quiet if high - quiet > _QUIET_SHARE * blocks.amplitude.size else None
 
 
 def _departure(t, x, blocks, low, free, period):
@@ -287,7 +321,10 @@ def _departure(t, x, blocks, low, free, period):
 
 
 def _time(t, blocks, index):
-    return float(t[min(int(index) * blocks.size, t.size - 1)])
+    """The time block ``index`` starts at; the last sample's for the end of the blocks."""
+    if index >= blocks.amplitude.size:
+        return float(t[-1])
+    return float(t[int(index) * blocks.size])
 
 
 def _onsets(amplitude, sigma):
@@ -356,7 +393,7 @@ def _why(blocks, low, free):
     return "transient"
 
 
-def _why_not_run(blocks, low, high, swing, sigma):
+def _why_not_run(swing, sigma):
     if swing <= 2 * _LATER_Z * sigma:
         return "rest"
     return "brief ring"
@@ -365,7 +402,8 @@ def _why_not_run(blocks, low, high, swing, sigma):
 _WORDS = {"rest": "a rest or hold before the release",
           "rising": "the swing still rising (a release or a drive)",
           "transient": "the excitation's transient (a strike's other modes, a hand letting go)",
-          "brief ring": "a brief ring too short or weak for a decay (a push, a knock)"}
+          "brief ring": "a brief ring too short or weak for a decay (a push, a knock)",
+          "noise": "the noise long after the decay has sunk into it"}
 
 
 def _notes(runs, left_out, period):
