@@ -64,6 +64,8 @@ class Analysis:
             # Where the free decay starts, when the record begins held, driven or settling.
             out["release_time"] = turning["release_time"]
             out["notes"] = (record["notes"] if record else []) + turning["notes"]
+            if "equilibrium_steps" in turning:  # only where one was found (issue 37)
+                out["equilibrium_steps"] = turning["equilibrium_steps"]
         elif record is not None:
             out["notes"] = record["notes"]
         if detail and "detail" in out:  # last, after the record's and turning points' keys

@@ -7,11 +7,13 @@ amplitude), is computed on a grid of ``_GRID`` points a period from the record's
 integral: one pass over the samples. A step of the equilibrium makes it rise by the step
 over three periods. Its jumps over four periods, ``m(t + 2T) - m(t - 2T)``, are compared
 with their scatter (the median absolute deviation over the record): a jump ``_Z`` times
-beyond it, at least ``_SMALLEST`` of the amplitude there and no more than half of it on
-either side (a record held still before its release, or an oscillation stopped by dry
-friction, has no oscillation on one side), where the local mean is a line with a step of
-the kernel's shape within ``_SHAPE`` of the step, is a step. Its time and size are
-fitted to that shape; up to ``_MOST`` steps are found.
+beyond it and at least ``_SMALLEST`` of the amplitude there, with the oscillation on both
+sides (a record held still before its release, or an oscillation stopped by dry friction
+away from its centre, has none on one side), where the local mean is a line with a step
+of the kernel's shape within ``_SHAPE`` of the step, is a step. Its time and size are
+fitted to that shape; up to ``_MOST`` steps are found. The jumps of a step-free record
+stand 1.6 to 3.3 times their scatter beyond it (white noise, drift, a random walk, a hum;
+THEORY.md has no section on it: see tests/test_equilibrium_step.py).
 
 numpy only, no I/O.
 """
@@ -29,9 +31,10 @@ __all__ = ["EquilibriumStep", "find_equilibrium_steps", "subtract_equilibrium_st
 _GRID = 16            # grid points per period of the local mean
 _REACH = 2.0          # the jump is m(t + _REACH*T) - m(t - _REACH*T), periods
 _SIDE = 3.0           # periods of level fitted on each side of the step's ramp
-_Z = 12.0             # a step stands this many times beyond the scatter of the jumps
+_Z = 8.0              # a step stands this many times beyond the scatter of the jumps
 _SMALLEST = 0.01      # ... and is at least this fraction of the local amplitude
-_LARGEST = 0.5        # ... and at most this fraction of the amplitude on either side
+_LARGEST = 5.0        # ... and at most this many times the amplitude on either side,
+_LOUD = 3.0           # ... which is this many noise sigmas at least
 _SHAPE = 0.15         # rms misfit of the step's shape, as a fraction of the step, at most
 _MOST = 3             # steps found at most
 _FEWEST_JUMPS = 8     # periods of jumps a record needs for their scatter
@@ -82,12 +85,13 @@ def find_equilibrium_steps(t, x, period, noise, gaps=()):
     """
     if not (np.isfinite(period) and period > 0) or t[-1] - t[0] < 4 * (_SIDE + 2) * period:
         return ()
+    noise = float(noise) if np.isfinite(noise) else 0.0
     centres, mean, amplitude = _local_mean(t, x, period, noise, gaps)
     if centres.size < 2 * _GRID * (_REACH + _FEWEST_JUMPS):
         return ()
     steps = []
     for _ in range(_MOST):
-        step = _strongest_step(centres, mean, amplitude, period)
+        step = _strongest_step(centres, mean, amplitude, period, noise)
         if step is None:
             break
         steps.append(step)
@@ -117,7 +121,7 @@ def _local_mean(t, x, period, noise, gaps):
     mean = _moving(_moving((first[_GRID:] - first[:-_GRID]) / period))
     square = _moving(_moving((second[_GRID:] - second[:-_GRID]) / period))
     centres = _moving(_moving(nodes[:-_GRID] + 0.5 * period))
-    variance = square - mean * mean - (noise if np.isfinite(noise) else 0.0) ** 2
+    variance = square - mean * mean - noise * noise
     amplitude = np.sqrt(2.0 * np.maximum(variance, 0.0))
     bad = np.zeros(centres.size, dtype=bool)
     for start, end in gaps:
@@ -160,7 +164,7 @@ def _ramp(z):
     return np.where(u < 1.0, u ** 3 / 6.0, np.where(u < 2.0, middle, 1.0 - (3.0 - u) ** 3 / 6.0))
 
 
-def _strongest_step(centres, mean, amplitude, period):
+def _strongest_step(centres, mean, amplitude, period, noise):
     """The largest jump of the local mean, as an :class:`EquilibriumStep` if it is one."""
     reach = int(round(_REACH * _GRID))
     jumps = np.full(mean.size, np.nan)
@@ -168,10 +172,16 @@ def _strongest_step(centres, mean, amplitude, period):
     valid = np.isfinite(jumps)
     if np.count_nonzero(valid) < _FEWEST_JUMPS * _GRID:
         return None
-    deviation = np.abs(jumps[valid] - _median(jumps[valid]))
-    scatter = _median(deviation) / _NORMAL_MAD
-    k = int(np.flatnonzero(valid)[np.argmax(deviation)])
-    if not deviation.max() > _Z * scatter:
+    deviation = np.abs(jumps - _median(jumps[valid]))
+    scatter = _median(deviation[valid]) / _NORMAL_MAD
+    # Candidates where the step's shape can be fitted: a low Q's residue at the record's
+    # start, far beyond a faint noise's scatter, is no candidate and hides none.
+    half = int(round((1.5 + _SIDE) * _GRID)) + _GRID
+    deviation[:half] = deviation[-half:] = np.nan
+    if not np.any(np.isfinite(deviation)):
+        return None
+    k = int(np.nanargmax(deviation))
+    if not deviation[k] > _Z * scatter:
         return None
     step = _fitted_step(centres, mean, k, period)
     if step is None:
@@ -180,8 +190,11 @@ def _strongest_step(centres, mean, amplitude, period):
     before, after = (amplitude[int(np.clip(np.searchsorted(centres, time + side * period),
                                            0, centres.size - 1))] for side in (-_REACH, _REACH))
     there = 0.5 * (before + after)
+    # The oscillation on both sides: not a record held still before its release, nor one
+    # stopped by dry friction away from its centre.
+    loud = min(before, after) >= max(abs(size) / _LARGEST, _LOUD * noise)
     if not (abs(size) > _Z * scatter and misfit <= _SHAPE * abs(size)
-            and _SMALLEST * there <= abs(size) <= _LARGEST * min(before, after)):
+            and _SMALLEST * there <= abs(size) and loud):
         return None
     return EquilibriumStep(float(time), float(size), float(there))
 
