@@ -66,6 +66,8 @@ class Analysis:
             # Where the free decay starts, when the record begins held, driven or settling.
             out["release_time"] = turning["release_time"]
             out["notes"] = (record["notes"] if record else []) + turning["notes"]
+            if "equilibrium_steps" in turning:  # only where one was found (issue 37)
+                out["equilibrium_steps"] = turning["equilibrium_steps"]
         elif record is not None:
             out["notes"] = record["notes"]
         if record is not None:
@@ -439,7 +441,8 @@ def _pendulum_waveform(record, turning, fit, error, degrees, criterion, model):
     from mcfit.fit.waveform_laws import PendulumWaveform
 
     kind = partial(PendulumWaveform, radians_per_unit=RADIANS_PER_DEGREE if degrees else 1.0)
-    x = _without_steady_line(record.t, record.x, turning.steady_line)
+    x = _without_steady_line(record.t, record.x, turning.steady_line,
+                             turning.equilibrium_steps)
     fitted = partial(fit_waveform, record.t, x, turning, criterion=criterion, forced=model,
                      form="velocity", kind=kind)
     start = _pendulum_start(fit, error)
@@ -504,7 +507,8 @@ def _waveform_fit(record, turning, fit, criterion, model, start=None):
     search took out."""
     from mcfit.fit.waveform import WaveformStart
 
-    x = _without_steady_line(record.t, record.x, turning.steady_line)
+    x = _without_steady_line(record.t, record.x, turning.steady_line,
+                             turning.equilibrium_steps)
     start = start or WaveformStart.of_fit(fit)
     waveform = fit_both_forms(record.t, x, turning, start, criterion=criterion,
                               forced=model)
@@ -575,15 +579,18 @@ def _predicted_bias(error, fit):
             + (f" at Q down to {q_min:.3g}{coulomb}" if q_min else ""))
 
 
-def _without_steady_line(t, x, line):
-    """The signal with the hum the turning-point search subtracted (if any) taken out."""
-    if line is None:
+def _without_steady_line(t, x, line, steps=()):
+    """The signal with the hum ``line`` and the ``steps`` of the equilibrium the
+    turning-point search subtracted (if any) taken out."""
+    if line is None and not steps:
         return x
     from mcfit.hum import subtract_steady_line
+    from mcfit.turning.step import subtract_equilibrium_steps
 
     finite = np.isfinite(x)
     out = np.array(x, dtype=float)
-    out[finite] = subtract_steady_line(t[finite], x[finite], line)
+    kept = subtract_equilibrium_steps(t[finite], x[finite], steps)
+    out[finite] = kept if line is None else subtract_steady_line(t[finite], kept, line)
     return out
 
 

@@ -57,6 +57,7 @@ from mcfit.turning.period import _period_and_drift
 from mcfit.turning.refine import _coarse_extrema, _refine
 from mcfit.turning.release import _held_until, _release, _release_note
 from mcfit.turning.result import MIN_TURNING_POINTS, TurningPoints, _frozen
+from mcfit.turning.step import find_equilibrium_steps, subtract_equilibrium_steps
 from mcfit.turning.spectrum import (_SPECTRUM_SAMPLES, _checked_period, _find_gaps, _gap_note,
                                     _spectral_noise, _spectrum)
 from mcfit.turning.tables import turning_points_from_table
@@ -132,7 +133,8 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     steps = np.diff(tf)
     dt = float(_median(steps))
     gaps = _find_gaps(tf, steps, dt)
-    spectral_period, noise, xf, hum, notes = _coarse_spectrum(tf, xf, dt, steps)
+    spectral_period, noise, xf, hum, notes, jumps = _coarse_spectrum(tf, xf, dt, steps, gaps,
+                                                                      period)
     del steps  # record-sized: each pass of half-cycle fits finds its wide steps itself
     if gaps:
         notes.insert(0, _gap_note(gaps, spectral_period))
@@ -179,6 +181,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     rise_release, rise_notes, warnings = _cut_at_rise(crests, y, sigma_y, reasons, source,
                                                       floor_level)
     notes += rise_notes
+    warnings = _step_warnings(jumps, crests, y, reasons == "") + list(warnings)
     release_time = rise_release if np.isfinite(rise_release) else release_time
     used = reasons == ""
     _check_count(y, reasons, source)
@@ -195,15 +198,29 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
         noise_sigma=float(m.noise_sigma), noise_floor=float(floor_level),
         noise_floor_time=floor_time, release_time=release_time, gaps=tuple(gaps),
         domain=domain, notes=tuple(notes), warnings=tuple(warnings), steady_line=hum,
-        t_start=float(t[0]))
+        t_start=float(t[0]), equilibrium_steps=jumps)
 
 
-def _coarse_spectrum(tf, xf, dt, steps):
-    """Step 1: (period, noise sigma, signal, hum removed or None, notes) from the spectrum.
+def _coarse_spectrum(tf, xf, dt, steps, gaps, period=None):
+    """Step 1: (period, noise sigma, signal, hum removed or None, notes, steps of the
+    equilibrium) from the spectrum.
 
     A steady line (mains hum) far from the oscillation's frequency is subtracted from the
-    signal, and the period and noise are then those of the oscillation.
+    signal, and the period and noise are then those of the oscillation. Steps of the
+    equilibrium (:mod:`.step`) are looked for in the signal as given (the local mean over
+    whole periods is blind to a hum) and subtracted; the hum is then looked for again, in
+    the signal without them, so that a step is never taken for a slow hum.
     """
+    found = _hum_spectrum(tf, xf, dt, steps)
+    guess = found[0] if period is None else float(period)
+    jumps = find_equilibrium_steps(tf, xf, guess, found[1], gaps)
+    if jumps:
+        found = _hum_spectrum(tf, subtract_equilibrium_steps(tf, xf, jumps), dt, steps)
+    return (*found, jumps)
+
+
+def _hum_spectrum(tf, xf, dt, steps):
+    """(period, noise sigma, signal, hum removed or None, notes) from the spectrum."""
     spectral_period, noise, periodogram = _spectrum(tf, xf, dt, steps)
     notes, removed = [], None
     if periodogram is None:
@@ -219,6 +236,16 @@ def _coarse_spectrum(tf, xf, dt, steps):
             noise = _spectral_noise(power, frequencies, line.oscillation_frequency, energy,
                                     xf[:_SPECTRUM_SAMPLES])
     return spectral_period, noise, xf, removed, notes
+
+
+def _step_warnings(jumps, crests, y, used):
+    """The warnings naming the steps of the equilibrium, each as a share of the first used
+    amplitude and of the used amplitudes there (interpolated)."""
+    if not jumps or not used.any():
+        return [jump.warning(np.nan, np.nan) for jump in jumps]
+    times, amplitudes = crests[used], y[used]
+    return [jump.warning(float(amplitudes[0]), float(np.interp(jump.time, times, amplitudes)))
+            for jump in jumps]
 
 
 def _exclusion_notes(release_time, free, release_cause, reasons, crests=()):

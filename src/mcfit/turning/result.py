@@ -63,6 +63,10 @@ class TurningPoints:
     t_start : float
         Time of the record's first sample, where the equilibrium line starts (see
         :meth:`equilibrium_at`).
+    equilibrium_steps : tuple of mcfit.turning.step.EquilibriumStep
+        Steps of the equilibrium in mid-record (a knock, a slip), in time order: the
+        equilibrium is the line plus each step's ``size`` from its ``time`` on, and the
+        crests on either side are measured about it. Each is named in ``warnings``.
     """
 
     t: np.ndarray
@@ -87,11 +91,17 @@ class TurningPoints:
     warnings: tuple[str, ...] = field(default=())
     steady_line: object = None  # the hum subtracted before the search (mcfit.hum.SteadyLine)
     t_start: float = 0.0
+    equilibrium_steps: tuple = ()
 
     def equilibrium_at(self, t):
-        """The equilibrium line at times ``t``: ``equilibrium`` at ``t_start``, changing by
-        ``equilibrium_drift`` per time unit."""
-        return self.equilibrium + self.equilibrium_drift * (np.asarray(t) - self.t_start)
+        """The equilibrium at times ``t``: ``equilibrium`` at ``t_start``, changing by
+        ``equilibrium_drift`` per time unit, and by each of ``equilibrium_steps`` from its
+        time on."""
+        t = np.asarray(t)
+        line = self.equilibrium + self.equilibrium_drift * (t - self.t_start)
+        for step in self.equilibrium_steps:
+            line = line + np.where(t >= step.time, step.size, 0.0)
+        return line
 
     def used_sigma(self):
         """The used turning points' uncertainties, or None unless each is finite and > 0
@@ -121,6 +131,8 @@ class TurningPoints:
                "release_time": number(self.release_time),
                "noise_sigma": number(self.noise_sigma), "excluded": excluded,
                "notes": list(self.notes), "warnings": list(self.warnings)}
+        if self.equilibrium_steps:
+            out["equilibrium_steps"] = [step.to_dict() for step in self.equilibrium_steps]
         if points:
             out["points"] = [
                 {"t": number(t), "amplitude": number(y), "sigma": number(s), "used": bool(u),
