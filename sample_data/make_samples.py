@@ -15,7 +15,7 @@ import pandas as pd
 
 HERE = Path(__file__).parent
 
-# name: simulate options (handbook scenes, THEORY.md section 6)
+# name: simulate options (handbook scenes, docs/theory.md section 9)
 SCENES = {
     "fig20_19_all_three.csv": "--a 0.1 --b 0.1 --c 0.01 --y0 4 --period 0.5 --duration 20 "
                               "--rate 100 --noise 0.005 --offset 0.3 --seed 1",

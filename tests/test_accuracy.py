@@ -1,6 +1,6 @@
 """The whole chain against the Cramer-Rao bound, and the verdict on real records.
 
-THEORY.md section 7: on envelope records with white noise the RMSE of each present
+docs/theory.md section 8: on envelope records with white noise the RMSE of each present
 coefficient must be within 1.25 CRLB with bias below 0.2 CRLB. The bound here is the full
 record's: the Fisher information of every waveform sample, not of the turning points.
 """

@@ -28,7 +28,7 @@ _ULP = 2.0**-53
 NEAR_CRITICAL_BELOW = (1.0, (_K * _K + 1) * _ULP, 2 * _B * _ULP, ((_K + 1) ** 2 + 1) * _ULP)
 NEAR_CRITICAL_ABOVE = (1.0, (_B - 1) * _ULP, 2 * _B * _ULP, (_B + 1) * _ULP)
 
-# (y0, a, b, c): every regime of THEORY.md section 3.
+# (y0, a, b, c): every regime of docs/theory.md section 2.
 REGIMES = {
     "all three, b^2 > 4ac (Fig. 20.19)": (4.0, 0.1, 0.1, 0.01),
     "b^2 = 4ac exactly": (1.0, 1.0, 2.0, 1.0),
@@ -248,10 +248,10 @@ def test_time_shift_composes(y0, a, b, c, f1, f2):
 
 
 def test_quality_factor_of_figure_20_19():
-    """Initial Q = 12.50; the closed form at t = 20 s gives Q = 22.09 (THEORY.md section 4).
+    """Initial Q = 12.50; the closed form at t = 20 s gives Q = 22.09 (docs/theory.md section 4).
 
-    THEORY.md quotes the amplitude there as 0.0558; the closed form gives 0.05590, which
-    truncated to three digits is 0.0558: both are checked.
+    The amplitude there is quoted as 0.0558 in earlier notes; the closed form gives 0.05590,
+    which truncated to three digits is 0.0558: both are checked.
     """
     omega = 2 * math.pi / 0.5
     y0, a, b, c = 4.0, 0.1, 0.1, 0.01
@@ -351,7 +351,7 @@ def test_power_law_jacobian_matches_mpmath_derivatives(n):
 
 
 def _mp_amplitude(t, y0, a, b, c):
-    """The closed form of THEORY.md section 3 evaluated directly in high precision
+    """The closed form of docs/theory.md section 2.3 evaluated directly in high precision
     (t before the stop): an independent reference for every branch of decay.py."""
     t, y0, a, b, c = (mp.mpf(v) for v in (t, y0, a, b, c))
     sigma = b * b / 4 - a * c

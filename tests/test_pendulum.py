@@ -1,4 +1,4 @@
-"""The pendulum's amplitude law at large swings (mcfit.fit.pendulum, THEORY.md section 8).
+"""The pendulum's amplitude law at large swings (mcfit.fit.pendulum, docs/theory.md section 6).
 
 The geometric factors are checked against quadratures of the exact swing; the fit against
 records from a tight integration of theta'' + 2*beta*theta' + kappa*theta'*|theta'|

@@ -1,5 +1,5 @@
 """The pendulum's averaged amplitude law and its sensitivities (mcfit.fit.pendulum,
-THEORY.md section 8), solved by quadrature of the autonomous law, against a tight
+docs/theory.md section 6), solved by quadrature of the autonomous law, against a tight
 integration of the law with its sensitivity equations; the geometric factors against
 mpmath's elliptic integrals; and the fits on pendulum records against the answers the
 integrated law gave (tests/data/pendulum_law_answers.json, made at commit 64f7dc8).

@@ -106,7 +106,7 @@ def test_a_pendulum_names_its_angle_unit_and_small_angle_period():
     fit = _pendulum().fit
     data = fit.to_dict()
     assert data["pendulum"]["angle_unit"] == "rad"
-    # T0 below the period of swings of 0.6 rad, by about theta0**2/16 (THEORY.md section 8)
+    # T0 below the period of swings of 0.6 rad, by about theta0**2/16 (docs/theory.md section 6)
     assert data["pendulum"]["small_angle_period"] == fit.small_angle_period
     assert 0.97 < fit.small_angle_period < 1.0
     assert list(data)[-2:] == ["pendulum", "warnings"]

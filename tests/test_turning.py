@@ -63,7 +63,7 @@ def test_noise_scatter_reaches_the_half_cycle_bound(samples_per_cycle, rng):
         predicted.append(points.sigma[used])
         assert points.noise_sigma == pytest.approx(sigma_x, rel=0.1)
     errors = np.concatenate(errors)
-    bound = np.sqrt(2 * sigma_x**2 / (samples_per_cycle / 2))  # THEORY.md section 7
+    bound = np.sqrt(2 * sigma_x**2 / (samples_per_cycle / 2))  # docs/theory.md section 8
     assert np.std(errors) < 1.15 * bound
     assert abs(np.mean(errors)) < 4 * bound / np.sqrt(errors.size)
     assert np.mean(np.concatenate(predicted)) == pytest.approx(bound, rel=0.15)

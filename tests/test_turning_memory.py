@@ -50,7 +50,7 @@ def test_phase_corrected_amplitudes_block_by_block_are_the_whole_array_formula(
     phase_variance[::37] = np.nan
     monkeypatch.setattr(crests, "_CREST_BLOCK", 64)
     y, sigma = crests._phase_corrected(projected, phase_variance, 0.02)
-    # THEORY.md section 7, written out on whole arrays.
+    # docs/theory.md section 8, written out on whole arrays.
     v = np.minimum(np.nan_to_num(phase_variance, nan=0.0), 1.0)
     gain = np.exp(0.5 * v)
     expected_y = projected.projection * gain

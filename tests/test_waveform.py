@@ -395,7 +395,7 @@ def test_a_turning_point_misfit_does_not_hide_the_averaged_laws_bias():
     chi-square in the hundreds, from a biased equilibrium) and its errors, scaled by that
     misfit, once made a bias of 7 noise standard errors look like 0.3; auto kept b = 0.61
     +- 0.02. With the equilibrium unbiased the turning points follow the averaged law, whose
-    b lies below Eq. 20.55's by the law's own error at low Q (THEORY.md section 8)."""
+    b lies below Eq. 20.55's by the law's own error at low Q (docs/theory.md section 7)."""
     truth = {"a": 0.0, "b": 0.6, "c": 0.0}
     t, x = simulate_record(y0=1.0, period=1.0, duration=6.0, rate=200.0, noise=1e-4,
                            rng=np.random.default_rng(3), **truth)

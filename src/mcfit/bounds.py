@@ -1,5 +1,5 @@
 """Cramer-Rao bounds of the damping coefficients: the smallest standard errors any unbiased
-fit can reach from a record with white Gaussian noise (THEORY.md section 7). numpy only.
+fit can reach from a record with white Gaussian noise (docs/theory.md section 8). numpy only.
 
 The bound is ``sqrt(diag(inv(J.T @ J))) * sigma`` with J the model's derivatives with respect
 to every free parameter at the truth. From turning-point amplitudes the parameters are y0

@@ -5,7 +5,7 @@ turning-point amplitude, ``c`` Coulomb (U/s), ``b`` hysteretic (1/s), ``a`` flui
 All functions take times in the units of the coefficients (seconds, or cycles for
 coefficients in cycle units) and broadcast over numpy arrays. Pure numpy: no I/O.
 
-The closed form is THEORY.md section 3::
+The closed form is docs/theory.md section 2.3::
 
     y = (y0 - tau*K) / (1 + tau*M),   K = c + b*y0/2,   M = a*y0 + b/2
     tau = t * Phi(sigma*t**2),        sigma = b**2/4 - a*c = D/4
@@ -572,7 +572,7 @@ def quality_factor(y, omega, a, b, c):
 
 
 def to_cycle_units(a, b, c, period):
-    """Coefficients per second -> per cycle: ``(a*T, b*T, c*T)`` (THEORY.md section 1)."""
+    """Coefficients per second -> per cycle: ``(a*T, b*T, c*T)`` (docs/theory.md section 1)."""
     return a * period, b * period, c * period
 
 

@@ -1,6 +1,6 @@
 """The velocity forms of the damping with any restoring force, integrated with their
 sensitivities: x'' + 2*beta*x' + kappa*x'*|x'| + mu*sgn(x') + R(x) = 0, R(x) = w**2*x
-("linear") or w**2*sin(x) (a pendulum, x in radians). THEORY.md sections 8 and 9.
+("linear") or w**2*sin(x) (a pendulum, x in radians). docs/theory.md sections 5 and 6.
 
 The motion and its derivatives with respect to the parameters (y0, theta0, omega, beta,
 kappa, mu) come from one integration of the state and the variational equations

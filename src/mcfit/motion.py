@@ -1,7 +1,7 @@
 """Equation of motion of the modified Coulomb oscillator, its integrators and synthetic records.
 
 Handbook Eq. 20.55 per unit mass, with ``A = sqrt(x**2 + (xdot/omega)**2)`` the energy
-amplitude (THEORY.md section 4)::
+amplitude (docs/theory.md section 4)::
 
     xddot + (pi*omega/2) * (c + b*A + a*A**2) * sgn(xdot) + omega**2 * x = 0
 
@@ -303,7 +303,7 @@ def integrate_accurate(x0, v0, omega, terms, t, rtol=_ACCURATE_RTOL, atol=None):
     Each half-cycle (constant sgn(v)) is one ``solve_ivp`` DOP853 run that ends at the
     event ``v = 0``; the run after it starts with the new sign, so the discontinuity of
     sgn(v) never falls inside a step. At a turning point the mass sticks for good when
-    ``omega**2*|x| <= pi*omega*c/2`` (THEORY.md section 4; ``c`` is the power-0
+    ``omega**2*|x| <= pi*omega*c/2`` (docs/theory.md section 4; ``c`` is the power-0
     coefficient), so a Coulomb decay ends at rest instead of chattering about 0.
 
     Parameters

@@ -16,7 +16,7 @@ phi(t) and A(t), whose derivatives the equations give. At a
 turning point from which the swing may not reach the other side of 0 (:func:`_stuck`) the
 last swings are integrated in x and xdot (:func:`_with_final_swing`).
 
-Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of THEORY.md section 1.
+Averaged over a half-cycle, dA/dt = -g(A): the amplitude law of docs/theory.md section 1.
 The half-cycles are solved all at once, by one Newton iteration over all their
 collocation equations (:func:`_all_half_cycles`), started from the averaged law; the
 functions take arrays of parameter sets (shape (m,)). :func:`phase_plane_differences`

@@ -1,5 +1,5 @@
 """The velocity forms of the damping that have a closed form: viscous damping with Coulomb
-friction, x'' + 2*beta*x' + mu*sgn(x') + w**2*x = 0 (THEORY.md section 9).
+friction, x'' + 2*beta*x' + mu*sgn(x') + w**2*x = 0 (docs/theory.md section 5).
 
 Between two reversals of the velocity the equation is linear, with the centre moved to
 -sgn(x')*mu/w**2, so each half-cycle is a damped cosine about its own centre. From rest

@@ -1,5 +1,5 @@
 """The fitting section of ``mcfit bench``: on the same noisy records, the RMSE and bias of
-a, b, c in units of the waveform Cramer-Rao bound (THEORY.md section 7,
+a, b, c in units of the waveform Cramer-Rao bound (docs/theory.md section 8,
 :func:`mcfit.bounds.waveform_crlb`) and the time per record, for mcfit (turning points then
 :func:`mcfit.fit.fit_decay`, forced to the true model and with the model it selects), the
 log decrement of single-sample peaks (:func:`log_decrement_rate`) and a Hilbert-envelope fit

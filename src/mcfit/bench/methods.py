@@ -1,6 +1,6 @@
 """The methods section of ``mcfit bench``: the turning-point fit against the waveform fit by
-the equation of motion (:func:`mcfit.fit.waveform.fit_waveform`), over Q (THEORY.md
-section 8, README "Low Q: fitting the waveform").
+the equation of motion (:func:`mcfit.fit.waveform.fit_waveform`), over Q (docs/theory.md
+section 7, README "Low Q: fitting the waveform").
 
 The records are pure hysteretic decays, b = omega/(2Q), from a tight integration of
 Eq. 20.55 (``simulate_record(..., method="accurate")``): period 1 s, y0 = 1, 100 samples

@@ -1,6 +1,6 @@
 """Fit the amplitude law to turning points, choose the damping regimes, estimate Q(t).
 
-The fit works on turning-point amplitudes ``y_k`` at times ``t_k`` (THEORY.md section 5).
+The fit works on turning-point amplitudes ``y_k`` at times ``t_k`` (docs/methods.md section 3).
 Each step lives in one module:
 
 - :mod:`~mcfit.fit.models`: the candidate models and their names (no numerical imports);
@@ -13,7 +13,7 @@ Each step lives in one module:
 - :mod:`~mcfit.fit.power`: the free power law, :class:`PowerLawFit`;
 - :mod:`~mcfit.fit.decay_fit`: :func:`fit_decay`, which runs them in turn.
 - :mod:`~mcfit.fit.pendulum`: :func:`fit_pendulum`, the same for a pendulum's swing angle
-  at large amplitudes (the sin(theta) geometry, THEORY.md section 8).
+  at large amplitudes (the sin(theta) geometry, docs/theory.md section 6).
 - :mod:`~mcfit.fit.waveform_laws` and :mod:`~mcfit.fit.waveform`: the record x(t) itself
   by the equation of motion, each form of the damping a law, and its fit.
 

@@ -1,4 +1,4 @@
-"""The amplitude law of a gravity pendulum at large swings, and its fit (THEORY.md section 8).
+"""The amplitude law of a gravity pendulum at large swings, and its fit (docs/theory.md section 6).
 
 For theta'' + D(theta') + w0**2 sin(theta) = 0 the energy at a turning point is
 E = w0**2 (1 - cos theta0), so dE/dtheta0 = w0**2 sin(theta0), and averaged over one exact
@@ -728,7 +728,7 @@ def large_swing_warning(values, model, times, amplitudes, sigma, period_drift,
     pendulum's drift is T(theta_max)/T(theta_min) - 1; when the measured one matches it
     (within 3 standard errors and a third of itself) and is clearly > 0, viscous damping
     decays the swing G1(theta) times as fast as the small-angle law says (1.06 at 1 rad;
-    THEORY.md section 8), which biases the small-angle b by :func:`_viscous_bias`.
+    docs/theory.md section 6), which biases the small-angle b by :func:`_viscous_bias`.
     """
     amplitudes = np.asarray(amplitudes, dtype=float)
     kept = np.isfinite(amplitudes) & (amplitudes > 0)

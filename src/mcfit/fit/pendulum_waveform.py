@@ -1,7 +1,7 @@
 """The result of a pendulum's waveform fit by its own equation of motion
 (:class:`mcfit.fit.waveform_laws.PendulumWaveform`): the coefficients keep their
-small-angle meaning, the amplitudes and Q(t) are the pendulum's law's (THEORY.md section
-8), and the angle unit and small-angle period are the averaged fit's."""
+small-angle meaning, the amplitudes and Q(t) are the pendulum's law's (docs/theory.md
+section 6), and the angle unit and small-angle period are the averaged fit's."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ class PendulumWaveformFit(WaveformFit):
 
 
 def _energy_q(fit, y_fit) -> dict:
-    """Q(t) the energy's (THEORY.md section 8) at the amplitudes ``y_fit``, as the
+    """Q(t) the energy's (docs/theory.md section 6) at the amplitudes ``y_fit``, as the
     pendulum's law reports it, in place of ``fit``'s small-angle Q; Q's relative errors are
     those of the small-angle Q (both scale as 1/rate). Nothing where there is no Q."""
     if fit.q is None:

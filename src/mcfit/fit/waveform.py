@@ -9,7 +9,7 @@ solution of Eq. 20.55 from amplitude y0 and phase theta0 at t0 with frequency om
 the eight candidate models, started from the turning-point fit, and chooses among them
 with :func:`mcfit.fit.selection.select_model` as the turning-point fit does.
 
-Each term has two physical forms with the same averaged law (THEORY.md section 9):
+Each term has two physical forms with the same averaged law (docs/theory.md section 5):
 Eq. 20.55's amplitude forms (``form="amplitude"``) and the velocity forms, viscous
 2*beta*x' for b, quadratic drag kappa*x'*|x'| for a and sliding friction mu*sgn(x') for c
 (``form="velocity"``, in closed form by :func:`mcfit.viscous_motion.viscous_motion`
@@ -850,7 +850,7 @@ def _reported(selection, candidates, waveform, start, form, solution=None):
 
 
 # Each form's force per unit mass for each term: (name, force, coefficient from the
-# averaged law's (value, omega), unit; U the signal's unit). THEORY.md section 9.
+# averaged law's (value, omega), unit; U the signal's unit). docs/theory.md section 5.
 _FORCES = {
     "amplitude": {"a": ("a", "(pi*w/2)*a*A**2*sgn(x')", lambda v, w: v, "1/(U*s)"),
                   "b": ("b", "(pi*w/2)*b*A*sgn(x')", lambda v, w: v, "1/s"),

@@ -2,7 +2,7 @@
 form of the damping forces, behind the interface of :class:`mcfit.fit.reported.Law`.
 
 Parameters y0, theta0, omega, offset e0, drift e1, then the averaged law's a, b, c
-(THEORY.md section 9): :class:`AmplitudeWaveform` by Eq. 20.55's amplitude forms
+(docs/theory.md section 5): :class:`AmplitudeWaveform` by Eq. 20.55's amplitude forms
 (:mod:`mcfit.phase_plane`; :class:`HystereticWaveform` in closed form for b alone,
 :mod:`mcfit.hysteretic_motion`), :class:`VelocityWaveform` by viscous damping and sliding
 friction in closed form (:mod:`mcfit.viscous_motion`), :class:`EquationOfMotionWaveform`

@@ -1,6 +1,6 @@
 """Turning points (extrema) of a free-decay record: times, amplitudes and their uncertainties.
 
-THEORY.md section 5, steps 1 and 2. numpy/scipy only, no I/O.
+docs/methods.md sections 1 and 2. numpy/scipy only, no I/O.
 
 Method for a waveform x(t):
 
@@ -23,7 +23,7 @@ Method for a waveform x(t):
    crests missed in the noise are filled in, and the sequence is continued to the end of the
    record. Each amplitude is then the projection of its half-cycle onto the envelope-shaped
    cosine at that crest: one free parameter, linear in the data, so unbiased however small
-   the crest, with variance ``2*sigma_x**2/m`` for ``m`` samples (THEORY.md section 7). A
+   the crest, with variance ``2*sigma_x**2/m`` for ``m`` samples (docs/theory.md section 8). A
    magnitude ``sqrt(A**2 + B**2)`` would be biased upwards near the noise. Amplitudes of
    crests in the noise can be negative.
 6. Clipped crests, half-cycles broken by gaps, a start before the free decay (the

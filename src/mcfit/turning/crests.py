@@ -34,7 +34,7 @@ _ENVELOPE_CRESTS = 9
 def _projected_crests(samples, m, period, line, decay, limit):
     """Crest times from the phase of the crests ``decay`` (a slice) of the measured crests
     ``m``, continued to ``limit``, and amplitudes as projections onto that phase
-    (THEORY.md section 7: near the noise a magnitude is biased, a projection is not).
+    (docs/theory.md section 8: near the noise a magnitude is biased, a projection is not).
 
     Returns the columns (t, sign, y, sigma, log_step, reason) and the time from which the
     crest phase is lost in the noise (None if it is not).
