@@ -13,7 +13,7 @@ from click.testing import CliRunner
 
 from mcfit import decay
 from mcfit.cli import cli
-from mcfit.report import CSV_COLUMNS
+from mcfit.report import CSV_COLUMNS, LAST_CSV_COLUMNS
 
 SAMPLE_DATA = Path(__file__).parents[1] / "sample_data"
 
@@ -124,7 +124,7 @@ def test_csv_output_has_the_contract_columns_once(runner, tmp_path, rng):
     result = runner.invoke(cli, [*files, "--format", "csv"])
     assert result.exit_code == 0
     rows = list(csv.reader(io.StringIO(result.stdout)))
-    assert tuple(rows[0]) == CSV_COLUMNS
+    assert tuple(rows[0]) == CSV_COLUMNS + LAST_CSV_COLUMNS
     assert len(rows) == 3 and rows[1][1] == "ok" and rows[1][2] == "abc"
 
 

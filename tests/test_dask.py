@@ -227,4 +227,4 @@ def test_without_the_extra_one_line_says_how_to_install_it(runner, records, monk
     monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed fails
     result = runner.invoke(cli, [paths[0], "--dask", "tcp://127.0.0.1:8786"])
     assert result.exit_code == 2
-    assert result.stderr == "Error: --dask needs the dask extra: pip install 'mcfit[dask]'\n"
+    assert result.stderr == "Error: --dask needs the dask extra: pip install 'mcfit-damping[dask]'\n"

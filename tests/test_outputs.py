@@ -13,7 +13,8 @@ from click.testing import CliRunner
 
 from mcfit.cli import cli
 from mcfit.fit.diagnostics import misfit_warning
-from mcfit.report import BOOTSTRAP_CSV_COLUMNS, CSV_COLUMNS, TURNING_POINT_COLUMNS
+from mcfit.report import (BOOTSTRAP_CSV_COLUMNS, CSV_COLUMNS, LAST_CSV_COLUMNS,
+                          TURNING_POINT_COLUMNS)
 
 SAMPLES = Path(__file__).parents[1] / "sample_data"
 FIG_20_19 = str(SAMPLES / "fig20_19_all_three.csv")
@@ -35,7 +36,7 @@ def test_csv_has_domain_units_method_resolved_chi_square_and_warnings():
     result = _run(FIG_20_19, STOP, "--format", "csv")
     assert result.exit_code == 0, result.output
     rows = list(csv.DictReader(io.StringIO(result.output)))
-    assert tuple(rows[0]) == CSV_COLUMNS
+    assert tuple(rows[0]) == CSV_COLUMNS + LAST_CSV_COLUMNS
     by_source = {Path(r["source"]).name: r for r in rows}
     fig = by_source["fig20_19_all_three.csv"]
     assert (fig["domain"], fig["units"], fig["method"], fig["resolved"]) == (
@@ -52,7 +53,7 @@ def test_csv_with_bootstrap_has_the_intervals():
     result = _run(FIG_20_19, "--format", "csv", "--bootstrap", "30", "--seed", "3")
     assert result.exit_code == 0, result.output
     row = next(csv.DictReader(io.StringIO(result.output)))
-    assert tuple(row) == CSV_COLUMNS + BOOTSTRAP_CSV_COLUMNS
+    assert tuple(row) == CSV_COLUMNS + BOOTSTRAP_CSV_COLUMNS + LAST_CSV_COLUMNS
     for k in ("a", "b", "c"):
         low, high = float(row[f"{k}_boot_low"]), float(row[f"{k}_boot_high"])
         assert low < float(row[k]) < high

@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from mcfit import __version__
 from mcfit.errors import FitError, McfitError, TooFewTurningPoints, UsageError
 from mcfit.fit import DecayFit, PowerLawFit, fit_decay
 from mcfit.fit.diagnostics import misfit_warning
@@ -72,6 +73,7 @@ class Analysis:
             out["notes"] = record["notes"]
         if record is not None:
             out["left_out"] = record["left_out"]
+        out["mcfit_version"] = __version__  # which mcfit wrote the results
         if detail and "detail" in out:  # last, after the record's and turning points' keys
             out["detail"] = out.pop("detail")
         return out
@@ -164,10 +166,10 @@ class Analysis:
             return {}
         import io
 
-        from mcfit.plots import DPI
+        from mcfit.plots import DPI, figure_metadata
 
         buffer = io.BytesIO()
-        self.figure().savefig(buffer, format="png", dpi=DPI)
+        self.figure().savefig(buffer, format="png", dpi=DPI, metadata=figure_metadata("png"))
         return {"image/png": buffer.getvalue()}
 
     def _fit_dict(self, record, turning, detail):
@@ -639,9 +641,14 @@ def _bound(value, default, record):
 
 
 def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=None,
-                   pendulum=False, degrees=None, method="auto", start=None,
+                   seed=None, pendulum=False, degrees=None, method="auto", start=None,
                    end=None) -> Analysis:
     """Turning points of ``record`` and the fit of the amplitude law to the used ones.
+
+    ``bootstrap`` resamples are drawn by ``rng`` where given, else by a generator seeded
+    with ``seed``, or with a seed drawn from the system's entropy where there is none:
+    the seed is reported (the fit's ``bootstrap["seed"]``; None for a given ``rng``), so
+    that ``seed=`` repeats the run.
 
     ``start``, ``end``: fit only the part of the record between these times (or cycles).
     ``pendulum``: the signal is a pendulum's swing angle, in degrees when ``degrees`` or,
@@ -655,6 +662,7 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     """
     model = check_fit_options(criterion=criterion, model=model, bootstrap=bootstrap,
                               method=method, pendulum=pendulum, start=start, end=end)
+    rng, seed = _bootstrap_generator(bootstrap, rng, seed)
     source = record.source
     try:
         if start is None and end is None:
@@ -693,8 +701,23 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
     except McfitError as error:
         return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)
     error = None if fit.message is None else f"{source}: {fit.message}"
+    if getattr(fit, "bootstrap", None) is not None:
+        fit = replace(fit, bootstrap={**fit.bootstrap, "seed": seed})
     return Analysis(source=source, status=fit.status, error=error, record=record,
                     turning=turning, fit=fit)
+
+
+def _bootstrap_generator(bootstrap, rng, seed):
+    """(generator, seed) for ``bootstrap`` resamples: ``rng`` as given (its seed is not
+    known: None), else a generator seeded with ``seed``, drawn by numpy's SeedSequence
+    from the system's entropy where none is given."""
+    if rng is not None:
+        return rng, None
+    if not bootstrap:
+        return None, seed
+    if seed is None:
+        seed = int(np.random.SeedSequence().generate_state(1)[0])
+    return np.random.default_rng(seed), seed
 
 
 def _waveform_fit_possible(record, pendulum, method):

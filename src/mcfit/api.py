@@ -25,7 +25,7 @@ import numpy as np
 from mcfit.analysis import Analysis, analyse_record, free_decay_runs
 from mcfit.errors import UsageError
 from mcfit.options import check_fit_options, check_read_options
-from mcfit.record import Record, detect_kind
+from mcfit.record import Record, detect_kind, with_signal_unit
 
 __all__ = ["analyse", "analyse_file", "analyse_files", "turning_points_frame"]
 
@@ -51,7 +51,8 @@ def analyse(t, x=None, *, source="<arrays>", kind=None, domain="time", unit=None
         What ``x`` holds [default: detected].
     domain : {"time", "cycle"}
     unit : str, optional
-        The signal's unit (``"mm"``), for the figure's axes and coefficients.
+        The signal's unit (``"mm"``), for every output: the report, ``to_dict``
+        (``signal_unit``, ``coefficient_units``) and the figure.
     **options
         The fit's options (``FIT_OPTIONS``), e.g. ``model="ab"``, ``method="waveform"``,
         ``bootstrap=200, seed=1``.
@@ -80,15 +81,14 @@ def analyse(t, x=None, *, source="<arrays>", kind=None, domain="time", unit=None
                              f"{x.shape}.")
         record = Record(source=source, t=t, x=x, kind=kind or detect_kind(t, x),
                         domain=domain, time_unit="s" if domain == "time" else None)
-    if unit:
-        record = replace(record, signal_unit=unit)
-    return analyse_record(record, **_fit_keywords(options))
+    return analyse_record(with_signal_unit(record, unit), **_fit_keywords(options))
 
 
 def analyse_file(path, *, unit=None, **options) -> Analysis:
     """:func:`analyse` of a record file (CSV, text, Excel...); for a file of several runs
     side by side give ``run=N``, or use :func:`analyse_files` for every run. ``unit``
-    names the signal's unit where the header does not (``Position (mm)`` does)."""
+    names the signal's unit for every output, in place of the header's (``Position
+    (mm)``), with a note where that differs."""
     from mcfit.io import read_records
 
     records = read_records(path, **_taken(options, READ_OPTIONS))
@@ -102,14 +102,15 @@ def analyse_file(path, *, unit=None, **options) -> Analysis:
             raise UsageError(f"{path} holds {len(records)} free decays (the oscillator "
                              "was excited more than once); use analyse_files for all of "
                              "them, or start= and end= for one.")
-    record = replace(records[0], signal_unit=unit) if unit else records[0]
+    record = with_signal_unit(records[0], unit)
     return replace(analyse_record(record, **keywords), source=record.name)
 
 
-def analyse_files(paths, *, jobs=1, **options):
+def analyse_files(paths, *, jobs=1, unit=None, **options):
     """Every record of ``paths`` (files or directories; every run of a multi-run file) as
     a pandas DataFrame with the command line's CSV columns, one row per record, in input
-    order; ``jobs`` worker processes."""
+    order; ``jobs`` worker processes; ``unit`` the signals' unit, as for
+    :func:`analyse_file`."""
     from mcfit import batch, report
     from mcfit.frames import results_frame
 
@@ -120,7 +121,7 @@ def analyse_files(paths, *, jobs=1, **options):
     chosen["model"] = _checked(check_fit_options, chosen)
     sources = batch.expand_inputs([str(p) for p in ([paths] if isinstance(paths, str)
                                                    else paths)])
-    fit_options = batch.FitOptions(output_format="csv", **chosen)
+    fit_options = batch.FitOptions(output_format="csv", unit=unit, **chosen)
     bootstrap = fit_options.bootstrap > 0
     rows = [report.csv_record(result["analysis"], bootstrap)
             for file_result in batch.run_jobs(sources, fit_options, [None] * len(sources),
@@ -154,8 +155,7 @@ def _nothing_else(options, names):
 
 
 def _fit_keywords(options):
-    """analyse_record's keywords from the fit's options (a seed becomes a generator)."""
+    """analyse_record's keywords from the fit's options."""
     keywords = _taken(options, FIT_OPTIONS)
     _nothing_else(options, FIT_OPTIONS)
-    keywords["rng"] = np.random.default_rng(keywords.pop("seed", None))
     return keywords

@@ -60,7 +60,7 @@ class FitOptions:
     end: float | None = None
     run: int | None = None  # of a file's runs side by side, the one to fit (None: all)
     angle_from: tuple | None = None  # (x, y) columns of a tracked pendulum bob
-    unit: str | None = None  # the signal's unit for the figure, where the header names none
+    unit: str | None = None  # the signal's unit for every output, in place of the header's
     title: str | None = None  # the figure's title (default: the file name)
     panels: tuple | None = None  # the figure's panels (default: mcfit.options.DEFAULT_PANELS)
     figsize: tuple | None = None  # the figure's (width, height) in inches
@@ -334,15 +334,15 @@ def run_plot_path(plot_path, run):
 
 def _record_job(source, record, options, plot_path):
     """The result (a dict, as :class:`FileResult` holds them) of one record read from
-    ``source``."""
-    import numpy as np
-
+    ``source``, its signal in ``options.unit`` where given."""
     from mcfit.analysis import analyse_record, failed_analysis
+    from mcfit.record import with_signal_unit
+
+    record = with_signal_unit(record, options.unit)
 
     try:
         analysis = analyse_record(record, criterion=options.criterion, model=options.model,
-                                  bootstrap=options.bootstrap,
-                                  rng=np.random.default_rng(options.seed),
+                                  bootstrap=options.bootstrap, seed=options.seed,
                                   pendulum=options.pendulum, degrees=options.degrees,
                                   method=options.method, start=options.start,
                                   end=options.end)

@@ -95,7 +95,8 @@ class McfitGroup(click.Group):
         group_options = {"-h", "--help", "--version"}
         if (self.default_command is not None and args and args[0] not in group_options
                 and args[0] not in self.commands):
-            if args[0] != "-" and not os.path.exists(args[0]):
+            if (args[0] != "-" and not os.path.exists(args[0])
+                    and not ctx.resilient_parsing):  # shell completion: never an error
                 import difflib  # only for a name that is neither a command nor a file
 
                 near = difflib.get_close_matches(args[0], list(self.commands), n=1,
@@ -105,6 +106,14 @@ class McfitGroup(click.Group):
                                            f"'mcfit {near[0]}'?")
             args = [self.default_command, *args]
         return super().parse_args(ctx, args)
+
+    def shell_complete(self, ctx, incomplete):
+        """The subcommands, options and, for the default command, file names: ``mcfit
+        <TAB>`` offers records to fit as well as ``fit``, ``simulate`` and ``bench``."""
+        items = super().shell_complete(ctx, incomplete)
+        if self.default_command is not None and not incomplete.startswith("-"):
+            items.append(_file_item(incomplete))
+        return items
 
     def invoke(self, ctx):
         try:
@@ -273,7 +282,7 @@ left out: mcfit FILE... does the same.
 \b
 Output (stdout): a readable report (default), --format json (one object for one
 file, JSON Lines for several, in input order) or --format csv (one row per file).
-Diagnostics and progress go to stderr.
+Diagnostics and progress go to stderr (with -q, errors only).
 
 \b
 Exit codes:
@@ -295,6 +304,19 @@ Examples:
 """ % supported_types()
 
 
+def _file_item(incomplete):
+    """A shell-completion item that asks the shell for file names (bash's ``compgen -f``,
+    zsh's ``_path_files``, fish's ``__fish_complete_path``)."""
+    from click.shell_completion import CompletionItem
+
+    return CompletionItem(incomplete, type="file")
+
+
+def _complete_files(ctx, param, incomplete):
+    """Record files and directories for ``mcfit fit <TAB>``."""
+    return [_file_item(incomplete)]
+
+
 def _column(value):
     """A column option: 1-based index when it is a whole number, else a name."""
     if value is None:
@@ -303,7 +325,7 @@ def _column(value):
 
 
 @cli.command("fit", help=_FIT_HELP, short_help="Fit records and report damping and Q (default).")
-@click.argument("files", nargs=-1, required=True)
+@click.argument("files", nargs=-1, required=True, shell_complete=_complete_files)
 @click.option("--time-col", metavar="NAME|N", help="Time column, by name or 1-based index.")
 @click.option("--signal-col", metavar="NAME|N", help="Signal column, by name or 1-based index.")
 @click.option("--sheet", metavar="NAME|N", help="Excel sheet, by name or 1-based index.")
@@ -341,7 +363,7 @@ def _column(value):
               help="Worker processes; results stay in input order.")
 @click.option("--dask", metavar="ADDRESS",
               help="Fit on a Dask cluster: its scheduler's address (tcp://host:8786) or "
-                   "scheduler file; needs pip install 'mcfit[dask]'.")
+                   "scheduler file; needs pip install 'mcfit-damping[dask]'.")
 @click.option("--turning-points-out", type=click.Path(dir_okay=False), metavar="FILE.csv",
               help="Also write every record's turning points (t, amplitude, sigma, used or "
                    "why not, fitted envelope) to this CSV file.")
@@ -366,8 +388,9 @@ def _column(value):
               help="The angle is in degrees (also when the signal column's name says 'deg' "
                    "or '°').")
 @click.option("--unit", metavar="TEXT",
-              help="The signal's unit for the figure's axes and coefficients (mm gives a "
-                   "in 1/(mm*s)) [default: from the header, e.g. 'Position (mm)'].")
+              help="The signal's unit, for every output: text, JSON, CSV and the figure "
+                   "(mm gives a in 1/(mm*s)); in place of the header's, with a note "
+                   "[default: from the header, e.g. 'Position (mm)'].")
 @click.option("--title", metavar="TEXT",
               help="The figure's title [default: the file name, with the run].")
 @click.option("--panels", metavar="LIST",
@@ -377,10 +400,12 @@ def _column(value):
 @click.option("--figsize", metavar="W,H", help="The figure's size in inches, e.g. 12,9.")
 @click.option("--dpi", type=click.IntRange(min=20, max=2400), metavar="N",
               help="Resolution of a PNG figure in dots per inch [default: 110].")
+@click.option("-q", "--quiet", is_flag=True,
+              help="No notes or progress bar on stderr: only errors, and the results.")
 def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion, model,
         bootstrap, seed, method, output_format, output, plot_file, plot_dir, jobs, dask,
         turning_points_out, start, end, run, angle_from, pendulum, degrees, unit, title,
-        panels, figsize, dpi):
+        panels, figsize, dpi, quiet):
     if dask is not None and jobs > 1:
         raise UsageError("give --dask ADDRESS or --jobs N, not both: with --dask the "
                          "cluster's workers fit the records.")
@@ -401,19 +426,19 @@ def fit(files, time_col, signal_col, sheet, rate, input_kind, domain, criterion,
         raise UsageError("give --plot FILE or --plot-dir DIR, not both.")
     if plot_file is not None:
         check_plot_name(plot_file)
-    figure_options = _figure_options(plot_file or plot_dir, unit=unit, title=title,
-                                     panels=panels, figsize=figsize, dpi=dpi)
+    figure_options = _figure_options(plot_file or plot_dir, title=title, panels=panels,
+                                     figsize=figsize, dpi=dpi)
     options = dict(time_col=_column(time_col), signal_col=_column(signal_col),
                    sheet=_column(sheet), rate=rate, kind=input_kind, domain=domain,
                    criterion=criterion, model=model,
                    bootstrap=bootstrap, seed=seed, method=method, pendulum=pendulum,
                    degrees=True if degrees else None, start=start, end=end, run=run,
-                   angle_from=angle_from,
+                   angle_from=angle_from, unit=unit,
                    turning_points_out=turning_points_out is not None, **figure_options)
     with _stop_signals_interrupt():
         try:
             failures = _fit_files(files, output, output_format, plot_file, plot_dir, jobs,
-                                  options, turning_points_out, dask)
+                                  options, turning_points_out, dask, quiet)
         except (KeyboardInterrupt, _Stopped) as interruption:
             # Stopped before the first record was written: nothing to keep.
             click.echo("\nInterrupted before any record was finished.", err=True)
@@ -446,9 +471,9 @@ def _angle_columns(text):
 
 
 def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
-               turning_points_out=None, dask=None):
+               turning_points_out=None, dask=None, quiet=False):
     """Check the outputs against each other and the inputs, then fit and write; return the
-    number of failed records."""
+    number of failed records. ``quiet``: no notes or progress bar, only errors."""
     from mcfit import batch
 
     inputs = batch.find_inputs(files)
@@ -485,12 +510,13 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
             raise McfitError(f"cannot create plot directory {plot_dir}: "
                              f"{error.strerror or error}") from error
     options = batch.FitOptions(output_format=output_format, **options)
-    for note in inputs.notes:
+    for note in () if quiet else inputs.notes:
         click.echo(f"Note: {printable(note)}", err=True)
     for problem in inputs.problems:  # counted as failures: the batch exits 1
         click.echo(f"Error: {printable(problem)}", err=True)
     if dask is None:
-        _note_jobs_cap(jobs, len(sources), batch.available_cpus())
+        if not quiet:
+            _note_jobs_cap(jobs, len(sources), batch.available_cpus())
         results = batch.run_jobs(sources, options, plot_paths, jobs=jobs)
     else:
         from mcfit import dask_jobs
@@ -499,7 +525,7 @@ def _fit_files(files, output, output_format, plot_file, plot_dir, jobs, options,
     try:
         return len(inputs.problems) + _write_results(
             results, sources, output_format, output, bootstrap=options.bootstrap > 0,
-            turning_points_out=turning_points_out)
+            turning_points_out=turning_points_out, quiet=quiet)
     finally:
         results.close()  # ends the worker processes at once after an error
 
@@ -534,8 +560,9 @@ def _refuse_outputs_that_clash(outputs, sources):
 
 
 def _write_results(results, sources, output_format, output, bootstrap=False,
-                   turning_points_out=None):
-    """Write each result as it arrives; return the number of failed records.
+                   turning_points_out=None, quiet=False):
+    """Write each result as it arrives; return the number of failed records. ``quiet``:
+    no progress bar.
 
     With -o the lines go to a temporary file that replaces the target at the end, or at an
     interruption, so the file always holds whole records only; the same for the turning
@@ -545,7 +572,7 @@ def _write_results(results, sources, output_format, output, bootstrap=False,
     target = Output(output)
     points = _TurningPointsOutput(turning_points_out)
     failures = done = written = 0
-    show_progress = total > 1 and _is_terminal(sys.stderr)
+    show_progress = total > 1 and not quiet and _is_terminal(sys.stderr)
     progress = (click.progressbar(length=total, label="fitting", file=sys.stderr)
                 if show_progress else None)
     from mcfit import report

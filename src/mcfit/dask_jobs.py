@@ -4,7 +4,7 @@ Each file is the same job as with ``jobs`` (:func:`mcfit.batch._job`), submitted
 cluster's scheduler; the results come back in input order, each as soon as it and the
 files before it are done. Only a few tasks per worker thread are in flight at a time, so
 that a million files are not all submitted at once. ``distributed`` is imported here
-only, when ``dask`` is given: it is an optional extra (``pip install 'mcfit[dask]'``).
+only, when ``dask`` is given: it is an optional extra (``pip install 'mcfit-damping[dask]'``).
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from mcfit.errors import McfitError, UsageError
 
 __all__ = ["run_jobs", "DaskBatch"]
 
-INSTALL_HINT = "`dask` needs the dask extra: pip install 'mcfit[dask]'"
+INSTALL_HINT = "`dask` needs the dask extra: pip install 'mcfit-damping[dask]'"
 TASKS_PER_THREAD = 4  # in flight per worker thread: each is busy while its next one waits
 MIN_IN_FLIGHT = 8  # while the cluster has few workers, or none yet
 RECOUNT_SECONDS = 10.0  # how often the cluster's threads are counted again (it may grow)
@@ -83,17 +83,21 @@ def _scheduler_address(text):
 
 def _check_workers(client, paths):
     """The workers present must have this version of mcfit (a worker that cannot import it
-    dies on its first task) and, for relative paths, run in this directory."""
-    from importlib.metadata import version
+    dies on its first task) and, for relative paths, run in this directory.
 
+    A worker is asked for the version of the mcfit it imports (:func:`_worker_version`),
+    not for an installed distribution's: that works from a source tree on the path, and
+    a worker whose ``mcfit`` is the other package of that name (fast integral
+    transforms) cannot run it, and counts as lacking mcfit."""
     from mcfit import __version__
 
-    found = client.run(version, "mcfit", on_error="return").values()
+    found = client.run(_worker_version, on_error="return").values()
     other = sorted({v if isinstance(v, str) else "" for v in found} - {__version__})
     if other:
         has = f"has mcfit {other[-1]}" if other[-1] else "cannot import mcfit"
         raise McfitError(f"a Dask worker {has}, this is mcfit {__version__}; install mcfit "
-                         f"{__version__} on every worker (pip install 'mcfit[dask]').")
+                         f"{__version__} on every worker (pip install "
+                         f"'mcfit-damping[dask]=={__version__}').")
     relative = [path for path in paths if path is not None and not os.path.isabs(path)]
     if not relative:
         return
@@ -103,6 +107,13 @@ def _check_workers(client, paths):
         raise UsageError(f"`dask`: the workers run in {elsewhere[0]}, not in {here}, and "
                          f"would not find {relative[0]}; give absolute paths, or start the "
                          "workers in this directory.")
+
+
+def _worker_version():
+    """The version of the mcfit a worker imports (run there by :func:`_check_workers`)."""
+    from mcfit import __version__
+
+    return __version__
 
 
 class DaskBatch:

@@ -6,11 +6,11 @@ from the equation of motion; :func:`mcfit.analyse` takes either.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-__all__ = ["Record", "coefficient_units", "detect_kind"]
+__all__ = ["Record", "coefficient_units", "detect_kind", "with_signal_unit"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,6 +105,20 @@ def coefficient_units(signal_unit, per) -> dict:
     unit = signal_unit or "U"
     factor = f"({unit})" if any(mark in unit for mark in "/* ") else unit
     return {"y0": unit, "a": f"1/({factor}*{per})", "b": f"1/{per}", "c": f"{factor}/{per}"}
+
+
+def with_signal_unit(record, unit):
+    """``record`` with its signal in ``unit`` (``"mm"``), as the option ``unit`` names it
+    for every output: a unit its header gave is overridden, with a note. ``record`` as it
+    is where ``unit`` is None or empty."""
+    unit = None if unit is None else str(unit).strip()
+    if not unit or unit == record.signal_unit:
+        return record
+    notes = record.notes
+    if record.signal_unit:
+        notes += (f"signal unit: {unit}, as `unit` says, in place of the header's "
+                  f"{record.signal_unit}",)
+    return replace(record, signal_unit=unit, notes=notes)
 
 
 def detect_kind(t, x):

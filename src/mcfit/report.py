@@ -14,8 +14,8 @@ from mcfit.fit.models import NONE, POWER, REGIME_NAMES, TERMS, regime_name
 from mcfit.plain import period_resolution, time_text
 from mcfit.record import coefficient_units
 
-__all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "TURNING_POINT_COLUMNS", "csv_columns",
-           "coefficient_units", "turning_points_header", "turning_points_rows", "to_json",
+__all__ = ["CSV_COLUMNS", "BOOTSTRAP_CSV_COLUMNS", "LAST_CSV_COLUMNS", "TURNING_POINT_COLUMNS",
+           "csv_columns", "coefficient_units", "turning_points_header", "turning_points_rows", "to_json",
            "csv_header", "csv_record", "to_csv_row", "to_text", "runs_summary"]
 
 CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", "b", "b_stderr",
@@ -26,6 +26,9 @@ CSV_COLUMNS = ("source", "status", "model", "y0", "y0_stderr", "a", "a_stderr", 
 # Appended with bootstrap intervals: the 95 % interval of each parameter and of Q.
 BOOTSTRAP_CSV_COLUMNS = tuple(f"{k}_boot_{end}" for k in ("y0", "a", "b", "c", "q_initial")
                               for end in ("low", "high"))
+# Appended last, after the bootstrap intervals where they are (columns are only appended,
+# so that a script's column numbers hold): the version of mcfit that wrote the row.
+LAST_CSV_COLUMNS = ("mcfit_version",)
 _Q_KEYS = ("initial", "final", "min", "max")
 _TERM_OF = {name: term for term, name in REGIME_NAMES.items()}
 
@@ -45,8 +48,9 @@ def to_json(data) -> str:
 
 
 def csv_columns(bootstrap=False) -> tuple:
-    """The CSV columns, with the bootstrap intervals' when ``bootstrap``."""
-    return CSV_COLUMNS + (BOOTSTRAP_CSV_COLUMNS if bootstrap else ())
+    """The CSV columns, with the bootstrap intervals' when ``bootstrap``, then
+    :data:`LAST_CSV_COLUMNS`."""
+    return CSV_COLUMNS + (BOOTSTRAP_CSV_COLUMNS if bootstrap else ()) + LAST_CSV_COLUMNS
 
 
 def csv_header(bootstrap=False) -> str:
@@ -67,7 +71,7 @@ def csv_record(data, bootstrap=False) -> dict:
            "method": data.get("method"), "resolved": data.get("resolved"),
            "reduced_chi_square": (data.get("fit") or {}).get("reduced_chi_square"),
            "warnings": "; ".join(data.get("warnings") or ()) or None, "run": data.get("run"),
-           "signal_unit": data.get("signal_unit")}
+           "signal_unit": data.get("signal_unit"), "mcfit_version": data.get("mcfit_version")}
     for k, unit in (data.get("coefficient_units") or dict.fromkeys(TERMS + ("y0",))).items():
         row[f"{k}_unit"] = unit
     for k in ("y0", "a", "b", "c"):
@@ -204,7 +208,8 @@ def _bootstrap_lines(data) -> list[str]:
     how = ("model fixed" if boot["selection"] == "fixed" else
            "model chosen anew in each: " + ", ".join(
                f"{m} {100 * share:.0f} %" for m, share in boot["models"].items()))
-    lines = [f"  bootstrap:       {boot['n']} resamples ({how}); 95 % intervals:"]
+    seed = f", seed {boot['seed']}" if boot.get("seed") is not None else ""
+    lines = [f"  bootstrap:       {boot['n']} resamples ({how}){seed}; 95 % intervals:"]
     for name, (low, high) in boot["interval_95"].items():
         lines.append(f"    {name:28s} [{_g(low, '.5g')}, {_g(high, '.5g')}]")
     return lines

@@ -16,10 +16,11 @@ from __future__ import annotations
 
 from mcfit.plots.against_amplitude import draw_backbone, draw_q_amplitude, draw_rate
 from mcfit.plots.against_time import draw_amplitudes, draw_q, draw_record
-from mcfit.plots.figure import (DPI, figure_size, plot_record, report_figure, save_figure,
-                                summary_text)
+from mcfit.plots.figure import (DPI, figure_metadata, figure_size, plot_record, report_figure,
+                                save_figure, summary_text)
 from mcfit.plots.view import RecordView, figure_title, record_view
 
 __all__ = ["DPI", "RecordView", "record_view", "figure_title", "report_figure", "figure_size",
            "summary_text", "draw_record", "draw_amplitudes", "draw_q",
-           "draw_rate", "draw_q_amplitude", "draw_backbone", "plot_record", "save_figure"]
+           "draw_rate", "draw_q_amplitude", "draw_backbone", "plot_record", "save_figure",
+           "figure_metadata"]

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
+from mcfit import __version__
 from mcfit.files import replace_atomically, temporary_beside
 from mcfit.fit import NONE, POWER, TERMS, DecayFit, PowerLawFit
 from mcfit.fit.models import regime_name
@@ -16,7 +17,8 @@ from mcfit.plots.legends import place_legends
 from mcfit.plots.view import record_view
 from mcfit.report import coefficient_units
 
-__all__ = ["DPI", "report_figure", "plot_record", "save_figure", "figure_size", "summary_text"]
+__all__ = ["DPI", "report_figure", "plot_record", "save_figure", "figure_metadata",
+           "figure_size", "summary_text"]
 
 _DRAW = {"record": draw_record, "q": draw_q, "rate": draw_rate, "qamp": draw_q_amplitude,
          "backbone": draw_backbone}
@@ -138,15 +140,34 @@ def plot_record(analysis, ax=None, unit=None):
     return ax
 
 
+def figure_metadata(file_format: str) -> dict:
+    """What a figure file says made it, as matplotlib's ``savefig(metadata=...)`` takes it
+    for ``file_format`` ("png", "pdf", "svg"): mcfit and its version, in PNG's
+    "Software", PDF's "Creator" and "Producer", SVG's "Creator"."""
+    import matplotlib
+
+    made_by = f"mcfit {__version__}"
+    with_matplotlib = f"{made_by} (matplotlib {matplotlib.__version__})"
+    if file_format == "png":
+        return {"Software": with_matplotlib}
+    if file_format == "pdf":
+        return {"Creator": made_by, "Producer": with_matplotlib}
+    if file_format == "svg":
+        return {"Creator": with_matplotlib}
+    return {}
+
+
 def save_figure(figure: Figure, path, dpi=None) -> None:
     """Write the figure whole or not at all (temporary file, then rename); format from
-    suffix. ``dpi`` is a PNG's dots per inch [default: :data:`DPI`]."""
+    suffix, with mcfit's version in its metadata (:func:`figure_metadata`). ``dpi`` is a
+    PNG's dots per inch [default: :data:`DPI`]."""
     check_plot_name(path)
     path = Path(path)
-    suffix = path.suffix.lower()
+    file_format = path.suffix.lower().lstrip(".")
     temporary = temporary_beside(path)
     try:
-        figure.savefig(temporary, format=suffix.lstrip("."), dpi=dpi or DPI)
+        figure.savefig(temporary, format=file_format, dpi=dpi or DPI,
+                       metadata=figure_metadata(file_format))
         replace_atomically(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
