@@ -292,7 +292,7 @@ def _job_for(source, options, plot_path):
 def _free_decays(source, options):
     """The records of ``source`` to fit: every run side by side, each kept to its free
     decay or split into one record per free decay (:func:`mcfit.analysis.free_decay_runs`)
-    unless ``--start``/``--end`` set the window; ``--run N`` picks a run side by side or,
+    unless ``start``/``end`` set the window; ``run=N`` picks a run side by side or,
     in a file of one run, a free decay."""
     from mcfit.analysis import free_decay_runs
     from mcfit.io import read_records

@@ -412,7 +412,7 @@ def _notes(runs, left_out, period):
 
     notes = [f"free decay located: {len(runs)} run{'s' * (len(runs) > 1)} "
              + ", ".join(f"from t = {at(a)} to {at(b)}" for a, b in runs)
-             + " (use --start and --end to choose by hand)"]
+             + " (use `start` and `end` to choose by hand)"]
     for a, b, why in left_out:
         notes.append(f"left out t = {at(a)} to {at(b)}: {_WORDS[why]}")
     return notes
