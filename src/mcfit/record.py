@@ -40,6 +40,10 @@ class Record:
     run : str or None
         Which of the file's runs side by side this is (``"Run 7"``); None for a file of
         one run.
+    oscillating_columns : tuple of str
+        The file's other columns that oscillate above their noise (a spectral line),
+        clearest first, when the signal column does not; else empty. A failed fit names
+        the first.
     """
 
     source: str
@@ -54,6 +58,7 @@ class Record:
     columns: tuple[str, ...] = ()
     notes: tuple[str, ...] = field(default=())
     run: str | None = None
+    oscillating_columns: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:
