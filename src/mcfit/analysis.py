@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import re
 from functools import partial
 from dataclasses import dataclass, replace
 
@@ -676,7 +677,7 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
             else None
         if analysis is not None:
             return analysis
-        message = str(error)
+        message = _oscillating_hint(str(error), record, error)
         if (start, end) != (None, None) and not isinstance(error, UsageError):
             message += (f" This is in the window from {_bound(start, 'the start', record)} to "
                         f"{_bound(end, 'the end', record)} asked for: widen it.")
@@ -699,7 +700,8 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
         if turning.warnings and fit.model != "power":
             fit = _unresolved(fit)  # a beat or disturbance was left out: no confident verdict
     except McfitError as error:
-        return failed_analysis(source, f"{source}: {error}", record=record, turning=turning)
+        return failed_analysis(source, f"{source}: {_oscillating_hint(str(error), record, error)}",
+                               record=record, turning=turning)
     error = None if fit.message is None else f"{source}: {fit.message}"
     if getattr(fit, "bootstrap", None) is not None:
         fit = replace(fit, bootstrap={**fit.bootstrap, "seed": seed})
@@ -718,6 +720,23 @@ def _bootstrap_generator(bootstrap, rng, seed):
     if seed is None:
         seed = int(np.random.SeedSequence().generate_state(1)[0])
     return np.random.default_rng(seed), seed
+
+
+def _oscillating_hint(message, record, error):
+    """``message`` of a record that shows no oscillation, naming the file's column that
+    does (:attr:`Record.oscillating_columns`) in place of "Check the signal column."."""
+    columns = getattr(record, "oscillating_columns", ())
+    if not columns or isinstance(error, UsageError) or "signal column" not in message:
+        return message
+    name = columns[0]
+    index = list(record.columns).index(name) + 1 if name in record.columns else None
+    given = name if re.fullmatch(r"[^`\s]+", name) else index
+    others = f" (also {', '.join(repr(c) for c in columns[1:3])})" if len(columns) > 1 else ""
+    where = f" (column {index})" if index is not None else ""
+    hint = (f"The signal column {record.signal_column!r} shows no oscillation above its "
+            f"noise, but {name!r}{where} does{others}: use `signal_col={given}`.")
+    cut = message.rfind("Check the ")
+    return (message[:cut] if cut >= 0 else message + " ") + hint
 
 
 def _waveform_fit_possible(record, pendulum, method):

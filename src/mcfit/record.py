@@ -52,6 +52,10 @@ class Record:
         "2014-07-30T14:20:00.123Z", "column": "Epoch"}`` (``clock`` also "unix epoch
         milliseconds", "date and time" or "time of day", whose ``value`` is the text read;
         ``utc`` None where the clock does not say its zone). None for elapsed time.
+    oscillating_columns : tuple of str
+        The file's other columns that oscillate above their noise (a spectral line),
+        clearest first, when the signal column does not; else empty. A failed fit names
+        the first.
     """
 
     source: str
@@ -69,6 +73,7 @@ class Record:
     left_out: tuple = ()
     whole: tuple | None = field(default=None, repr=False)
     time_origin: dict | None = None
+    oscillating_columns: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:

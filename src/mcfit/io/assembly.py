@@ -7,6 +7,7 @@ import numpy as np
 from mcfit.errors import InputError
 from mcfit.io.clocks import rebased_epoch
 from mcfit.io.columns import _Run, _axis_siblings, _chosen_columns, _resolve_column
+from mcfit.io.lines import LINE_RATIO
 from mcfit.io.table import _describe, _read_columns
 from mcfit.io.times import _repair_times, _timestamp_problem
 from mcfit.io.tokens import _CYCLE_NAMES, _SECONDS_PER_UNIT, _base_name, _time_unit
@@ -37,7 +38,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
     run = run or _Run(None, 1, tuple(range(len(table.names))))
     notes = list(table.notes)
     _check_rows(table, time_col, signal_col, rate)
-    time_index, signal_index, others, ignored = _chosen_columns(
+    time_index, signal_index, others, ignored, strengths = _chosen_columns(
         table, time_col, signal_col, rate, run, angle_from)
     if run.label is not None:
         notes.append(f"{run.label}, one of {run.count} runs side by side in the file, fitted "
@@ -68,7 +69,7 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
         t, x = _checked_waveform(table, time_index, t, x, notes)
     if domain is None:
         domain = _detected_domain(table, time_index, chosen_kind, t, time_unit, notes)
-    _choice_notes(table, time_index, signal_index, others, time_col is None,
+    _choice_notes(table, time_index, (signal_index, others, strengths), time_col is None,
                   signal_col is None and angle_from is None, notes)
     if domain == "time" and time_unit is not None:
         t, time_unit = _in_seconds(t, time_unit, notes)
@@ -86,7 +87,8 @@ def _build_record(table, time_col, signal_col, rate, kind, domain, run=None,
                   time_column=table.names[time_index] if time_index is not None else None,
                   signal_column=signal_label, time_unit=time_unit, signal_unit=signal_unit,
                   columns=tuple(table.names), notes=tuple(notes), run=run.label,
-                  time_origin=origin)
+                  time_origin=origin,
+                  oscillating_columns=_oscillating_instead(table, signal_index, strengths))
 
 
 def _check_rows(table, time_col, signal_col, rate):
@@ -211,21 +213,41 @@ def _detected_domain(table, time_index, kind, t, time_unit, notes):
     return domain
 
 
-def _choice_notes(table, time_index, signal_index, others, time_chosen, signal_chosen, notes):
-    """Notes naming the time and signal columns chosen automatically, and the others."""
+def _choice_notes(table, time_index, signal, time_chosen, signal_chosen, notes):
+    """Notes naming the time and signal columns chosen automatically, the other columns
+    that oscillate and the other candidates; ``signal`` is (signal column, the other
+    candidates, their line strengths)."""
+    signal_index, others, strengths = signal
     if time_index is not None and time_chosen:
         notes.append(f"time column: {_describe(table, time_index)} (chosen automatically; "
                      "use `time_col` to change)")
     if signal_chosen:
         other = ""
-        if others:
-            other = "; other candidates: " + ", ".join(_describe(table, i) for i in others)
+        also = [i for i in others if strengths.get(i, 0.0) >= LINE_RATIO]
+        if also:
+            own = strengths.get(signal_index, 0.0)
+            other = "; also oscillating: " + ", ".join(
+                _describe(table, i) + (" (weaker)" if strengths[i] < own else "")
+                for i in also)
+        rest = [i for i in others if i not in also]
+        if rest:
+            other += "; other candidates: " + ", ".join(_describe(table, i) for i in rest)
         most = (", the component that oscillates most"
                 if _axis_siblings(table, signal_index, others) else "")
         if table.loudest == signal_index:
             most = ", the channel that swings most"
         notes.append(f"signal column: {_describe(table, signal_index)}{most} (chosen "
                      f"automatically; use `signal_col` to change{other})")
+
+
+def _oscillating_instead(table, signal_index, strengths):
+    """The names of the other columns with a spectral line, clearest first, when the
+    signal column has none; else ()."""
+    if not strengths or strengths.get(signal_index, 0.0) >= LINE_RATIO:
+        return ()
+    lines = sorted((i for i, s in strengths.items() if s >= LINE_RATIO and i != signal_index),
+                   key=lambda i: -strengths[i])
+    return tuple(table.names[i] for i in lines)
 
 
 def _in_seconds(t, time_unit, notes):

@@ -10,6 +10,7 @@ import numpy as np
 from mcfit.errors import InputError, UsageError
 from mcfit.io.clocks import epoch_scale
 from mcfit.io.layouts import LAYOUTS
+from mcfit.io.lines import LINE_RATIO, line_strength
 from mcfit.io.table import _describe
 from mcfit.io.times import _timestamp_problem
 from mcfit.io.tokens import _CYCLE_NAMES, _RUN_SUFFIX, _base_name, _is_time_name
@@ -192,12 +193,32 @@ def _choose_time(table, rate, columns):
     return None, []
 
 
-def _choose_signal(table, time_index, ignored, columns):
+def _signal_candidates(table, time_index, ignored, columns):
+    """The columns that may be the signal: not the time, a clock or an ignored time
+    column, with two numbers at least and not constant in the sample."""
     sample = table.sample
-    candidates = [i for i in columns
-                  if i != time_index and i not in ignored and i not in table.clock
-                  and np.count_nonzero(np.isfinite(sample[i].values)) >= 2
-                  and np.ptp(sample[i].values[np.isfinite(sample[i].values)]) > 0]
+    return [i for i in columns
+            if i != time_index and i not in ignored and i not in table.clock
+            and np.count_nonzero(np.isfinite(sample[i].values)) >= 2
+            and np.ptp(sample[i].values[np.isfinite(sample[i].values)]) > 0]
+
+
+def _line_strengths(table, candidates):
+    """{column: :func:`line_strength` of its sample} for two candidates or more, else {}:
+    one column needs no comparison."""
+    if len(candidates) < 2:
+        return {}
+    return {i: line_strength(table.sample[i].to_numpy(dtype=np.float64))
+            for i in candidates}
+
+
+def _choose_signal(table, time_index, ignored, columns, strengths):
+    """(signal column, the other candidates in order): the column with the clearest
+    spectral line (``strengths``), else the first that crosses its middle often, else the
+    first that varies; names of derived quantities (velocity, fit) last; of a vector
+    sensor's components, the one that swings most."""
+    sample = table.sample
+    candidates = _signal_candidates(table, time_index, ignored, columns)
     if not candidates:  # only constant columns: say so when they are read
         rest = [i for i in columns if i != time_index and i not in ignored
                 and np.isfinite(sample[i].values).any()]
@@ -205,10 +226,13 @@ def _choose_signal(table, time_index, ignored, columns):
     secondary = [i for i in candidates
                  if any(w in _base_name(table.names[i])[0] for w in _SECONDARY_SIGNAL_WORDS)]
     primary = [i for i in candidates if i not in secondary]
-    # Scoring orders the primary candidates; one needs no score.
+    # Lines first, the clearest first (sorted stably: clean lines keep the file's order),
+    # then columns that cross their middle often; one candidate needs no score.
+    lines = sorted((i for i in primary if strengths.get(i, 0.0) >= LINE_RATIO),
+                   key=lambda i: -strengths[i])
     oscillating = ([i for i in primary if _oscillates(sample[i].values)]
                    if len(primary) > 1 else primary)
-    order = oscillating + [i for i in primary if i not in oscillating] + secondary
+    order = list(dict.fromkeys(lines + oscillating + primary + secondary))
     axes = [order[0]] + _axis_siblings(table, order[0], order[1:])
     if table.loudest in order:  # audio channels: the one that swings most
         order.remove(table.loudest)
@@ -248,20 +272,24 @@ def _oscillation_size(values):
 
 
 def _chosen_columns(table, time_col, signal_col, rate, run, angle_from):
-    """(time index or None, signal index, other signal candidates, ignored time columns)
-    among the run's columns; for ``angle_from`` the signal is the bob's x column."""
+    """(time index or None, signal index, other signal candidates, ignored time columns,
+    line strengths) among the run's columns; for ``angle_from`` the signal is the bob's x
+    column. The strengths ({column: :func:`line_strength`}) are those of the candidates
+    for the signal, when there are two or more of them."""
     name, columns = table.name, run.columns
     ignored = []
     if time_col is not None:
         time_index = _resolve_column(table, time_col, "time", columns)
     else:
         time_index, ignored = _choose_time(table, rate, columns)
+    strengths = _line_strengths(table, _signal_candidates(table, time_index, ignored,
+                                                          columns))
     signal_col = angle_from[0] if angle_from is not None else signal_col
     if signal_col is not None:
         role = "signal" if angle_from is None else "angle"
         signal_index, others = _resolve_column(table, signal_col, role, columns), []
     else:
-        signal_index, others = _choose_signal(table, time_index, ignored, columns)
+        signal_index, others = _choose_signal(table, time_index, ignored, columns, strengths)
         if signal_index is None:
             if table.sample.shape[1] == 1 or time_index is None:
                 raise InputError(f"no signal column found in {name} (columns: "
@@ -276,4 +304,4 @@ def _chosen_columns(table, time_col, signal_col, rate, run, angle_from):
     if time_index is None and rate is None:
         raise InputError(f"no time column found in {name} (no column increases steadily). "
                          "Name it with `time_col` or give the sample rate with `rate=HZ`.")
-    return time_index, signal_index, others, ignored
+    return time_index, signal_index, others, ignored, strengths

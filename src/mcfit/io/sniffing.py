@@ -239,7 +239,9 @@ def _surely_plain(content, tail_content):
                    for _, line in content[1:50] for f in _line_fields(line, sep))
 
 
-_PLAIN_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+# One way only to match each number (no "\d+\.?\d*", whose digits split many ways): a
+# line that fails late, at a date field, would otherwise backtrack exponentially.
+_PLAIN_NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?"
 
 
 def _plain_width(lines, sep):
