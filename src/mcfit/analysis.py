@@ -20,7 +20,8 @@ from mcfit.options import check_fit_options
 from mcfit.turning import TurningPoints, turning_points_of
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "auto_start", "crop_record",
-           "failed_analysis", "free_decay_runs", "fit_turning_points", "fit_by_method", "with_large_swing_warning"]
+           "failed_analysis", "free_decay_runs", "fit_turning_points", "fit_by_method",
+           "fit_slow_record", "with_large_swing_warning"]
 
 @dataclass(frozen=True)
 class Analysis:
@@ -345,6 +346,12 @@ def _auto_method(record, turning, fit, *, criterion, model):
     misfits where the turning-point fit does not."""
     from mcfit.model_error import LIMIT, averaged_law_bias
 
+    slow = _slow_sampling(record.t, turning.period)
+    if slow is not None:
+        waveform = _waveform_fit(record, turning, fit, criterion, model, slow=True)
+        dof = fit.n_points - 1 - len(fit.selection.terms)
+        return _reported_of(fit, waveform, slow, _SLOW_MOTION,
+                            bool(misfit_warning(fit.reduced_chi_square, dof)))
     error = averaged_law_bias(record.t, turning, fit)
     said = _predicted_bias(error, fit)
     if error.largest <= LIMIT:
@@ -354,6 +361,61 @@ def _auto_method(record, turning, fit, *, criterion, model):
     dof = fit.n_points - 1 - len(fit.selection.terms)
     return _reported_of(fit, waveform, said, "the equation of motion",
                         bool(misfit_warning(fit.reduced_chi_square, dof)))
+
+
+def _slow_sampling(t, period):
+    """Why the turning-point fit of a record sampled at times ``t`` with oscillation
+    ``period`` is not trusted: under :data:`mcfit.turning.SAMPLES_PER_CYCLE` samples a
+    cycle a half-cycle fit places each crest from two or three samples and the amplitudes
+    are biased (b at 5 samples a cycle 5-17 standard errors off, where the waveform fit
+    is within its errors); None at or above it, or without a period."""
+    from mcfit.turning import SAMPLES_PER_CYCLE
+
+    steps = np.diff(t)
+    if steps.size == 0 or not (math.isfinite(period) and period > 0):
+        return None
+    samples = period / float(np.median(steps))
+    if samples >= SAMPLES_PER_CYCLE:
+        return None
+    return (f"sampled at {samples:.2g} samples a cycle, under {SAMPLES_PER_CYCLE}: crests "
+            "placed from so few samples are biased")
+
+
+# How a record sampled too slowly for its crests is fitted (the method line says it).
+_SLOW_MOTION = ("the equation of motion, its sample noise from the residuals of the "
+                "best-fitting model (the samples alone cannot tell the noise from the "
+                "oscillation)")
+
+
+def fit_slow_record(t, x, turning, start, *, criterion="aicc", forced=None):
+    """:func:`fit_both_forms` of a record of few samples a cycle, fitted twice: the
+    second time with the sample noise the first one's residuals give, from the candidate
+    of least chi-square per degree of freedom. Below 8 samples a cycle no difference
+    filter takes out the oscillation and leaves the noise (at 4 samples a cycle the
+    waveform fit's own estimate put the reduced chi-square anywhere from 0.4 to 6)."""
+    first = fit_both_forms(t, x, turning, start, criterion=criterion, forced=forced)
+    noise = _residual_noise(first)
+    if noise is None:
+        return first
+    return fit_both_forms(t, x, turning, start, criterion=criterion, forced=forced,
+                          noise=noise)
+
+
+def _residual_noise(fit):
+    """The sample noise (record units) the residuals of ``fit``'s candidates give: the
+    least chi-square per degree of freedom, in units of the noise the fit had; None where
+    none has a degree of freedom or a finite chi-square."""
+    n = fit.n_points
+    chosen = _selected(fit)
+    dof = n - chosen.n_params
+    if not (dof > 0 and fit.reduced_chi_square > 0 and math.isfinite(fit.rms)):
+        return None
+    had = fit.rms * math.sqrt(n / (fit.reduced_chi_square * dof))
+    per_dof = [c.chi_square / (n - c.n_params) for c in fit.candidates
+               if n > c.n_params and math.isfinite(c.chi_square) and c.chi_square > 0]
+    if not per_dof or not (had > 0 and math.isfinite(had)):
+        return None
+    return had * math.sqrt(min(per_dof))
 
 
 # A term whose value less the averaged law's predicted bias of it is at most this many
@@ -504,17 +566,17 @@ METHODS = {"auto": _auto_method, "turning-points": _turning_point_method,
            "waveform": _waveform_method}
 
 
-def _waveform_fit(record, turning, fit, criterion, model, start=None):
+def _waveform_fit(record, turning, fit, criterion, model, start=None, slow=False):
     """The waveform fit in the form the record supports, started from ``start`` (the
     turning-point ``fit``'s by default), of the signal without the hum the turning-point
-    search took out."""
+    search took out; ``slow``: with the noise from its residuals (:func:`fit_slow_record`)."""
     from mcfit.fit.waveform import WaveformStart
 
     x = _without_steady_line(record.t, record.x, turning.steady_line,
                              turning.equilibrium_steps)
     start = start or WaveformStart.of_fit(fit)
-    waveform = fit_both_forms(record.t, x, turning, start, criterion=criterion,
-                              forced=model)
+    waveform = (fit_slow_record if slow else fit_both_forms)(
+        record.t, x, turning, start, criterion=criterion, forced=model)
     if fit.bootstrap is None:
         return waveform
     return replace(waveform, warnings=waveform.warnings + (
@@ -523,17 +585,19 @@ def _waveform_fit(record, turning, fit, criterion, model, start=None):
         "which is not reported: the waveform fit's intervals are from its covariance",))
 
 
-def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None):
+def fit_both_forms(t, x, turning, start, *, criterion="aicc", forced=None, noise=None):
     """The waveform fit in the form of the damping forces the record supports: Eq. 20.55's
     amplitude forms or the velocity forms (:data:`mcfit.fit.waveform.FORMS`), by the AICc
     of the model each selects; ``damping_form`` is "cannot tell" within
     :data:`mcfit.fit.waveform.FORM_TIE`, and the lower one is reported. One form is
     ranked first (the velocity forms where they alone describe the record at their first
     fit, else the amplitude forms: :func:`mcfit.fit.waveform.rank_forms`); the other
-    starts from its choice and stops where it cannot come within the tie."""
+    starts from its choice and stops where it cannot come within the tie. ``noise``: the
+    sample noise (default: the window's, :func:`mcfit.fit.waveform.sample_noise`)."""
     from mcfit.fit.waveform import FORM_TIE, rank_forms, report_form
 
-    ranked = rank_forms(t, x, turning, start, criterion=criterion, forced=forced)
+    ranked = rank_forms(t, x, turning, start, criterion=criterion, forced=forced,
+                        noise=noise)
     if not ranked:
         raise FitError(f"no form of the waveform fit has the model {forced!r}",
                        option="model")
@@ -752,12 +816,15 @@ def _few_swings_analysis(record, *, criterion, model):
 
     try:
         turning, start = few_swings_start(record.t, record.x, record.source)
-        waveform = fit_both_forms(record.t, record.x, turning, start, criterion=criterion,
-                                  forced=model)
+        slow = _slow_sampling(record.t, turning.period)
+        waveform = (fit_slow_record if slow else fit_both_forms)(
+            record.t, record.x, turning, start, criterion=criterion, forced=model)
     except McfitError:
         return None
-    fit = replace(waveform, method_reason="too few turning points for the averaged law "
-                  "were found: fitted by the equation of motion from a damped cosine's start")
+    why = (f"{slow}, too few for the averaged law: fitted by {_SLOW_MOTION}" if slow else
+           "too few turning points for the averaged law were found: fitted by the equation "
+           "of motion")
+    fit = replace(waveform, method_reason=f"{why}, from a damped cosine's start")
     if not describes_waveform(fit):
         fit = _unresolved(replace(fit, warnings=fit.warnings + (_misfit_warning(fit),)))
     turning, fit = with_fitted_amplitudes(turning, fit)

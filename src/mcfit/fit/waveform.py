@@ -227,7 +227,7 @@ def _with_first_fit(opened, start, forced):
     return replace(opened, first=candidate, solution=solution)
 
 
-def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None):
+def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None, noise=None):
     """{form: RankedForm} for each form of :data:`FORMS` that offers ``forced`` (every
     form without it): one ranked alone, then the others against it (:func:`rank_form`'s
     rival). The amplitude forms go first, unless their first fit does not describe the
@@ -235,12 +235,14 @@ def rank_forms(t, x, turning, start, *, criterion="aicc", forced=None):
     and better: then the velocity forms go first, and the amplitude forms close on
     estimates from their first fit, or are ranked from it as they would be first, down to
     the velocity forms' bar (on a viscous oscillator at Q = 3 the amplitude forms' b
-    misfits; ranking them first cost a second b, a + b + c and a + b, about 30 ms)."""
+    misfits; ranking them first cost a second b, a + b + c and a + b, about 30 ms).
+    ``noise``: the sample noise in the record's units (default: :func:`sample_noise` of
+    the window)."""
     forms = [form for form, (_, offered) in FORMS.items() if forced is None or forced in offered]
     if not forms:
         return {}
     lead = forms[0]
-    opened = {lead: open_form(t, x, turning, start, form=lead, forced=forced)}
+    opened = {lead: open_form(t, x, turning, start, form=lead, forced=forced, noise=noise)}
     if forced is None and len(forms) > 1 and _may_not_lead(opened[lead]):
         other = opened[forms[1]] = open_form(t, x, turning, start, form=forms[1],
                                              noise=opened[lead].noise)

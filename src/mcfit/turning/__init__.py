@@ -58,8 +58,8 @@ from mcfit.turning.refine import _coarse_extrema, _refine
 from mcfit.turning.release import _held_until, _release, _release_note
 from mcfit.turning.result import MIN_TURNING_POINTS, TurningPoints, _frozen
 from mcfit.turning.step import find_equilibrium_steps, subtract_equilibrium_steps
-from mcfit.turning.spectrum import (_SPECTRUM_SAMPLES, _checked_period, _find_gaps, _gap_note,
-                                    _spectral_noise, _spectrum)
+from mcfit.turning.spectrum import (_SPECTRUM_SAMPLES, _checked_period, _checked_sampling,
+                                    _find_gaps, _gap_note, _spectral_noise, _spectrum)
 from mcfit.turning.tables import turning_points_from_table
 from mcfit.turning.windows import Samples, _measure
 
@@ -139,7 +139,7 @@ def find_turning_points(t, x, *, period=None, domain="time", source="record",
     if gaps:
         notes.insert(0, _gap_note(gaps, spectral_period))
     period = _checked_period(spectral_period if period is None else period, dt, source)
-    samples_per_cycle = period / dt
+    samples_per_cycle = _checked_sampling(period / dt, source)
 
     # Coarse extrema about a coarse equilibrium, then half-cycle fits.
     line = _equilibrium_line(tf, xf, period, noise)

@@ -10,7 +10,7 @@ from scipy.fft import next_fast_len
 from mcfit.errors import RecordError
 from mcfit.hum import peak_frequency
 from mcfit.plain import period_resolution, time_text
-from mcfit.turning.common import _median, _robust_sigma
+from mcfit.turning.common import SAMPLES_PER_CYCLE, _median, _robust_sigma
 
 # Longest stretch fed to the FFT for the coarse period and noise level.
 _SPECTRUM_SAMPLES = 1 << 21
@@ -26,6 +26,11 @@ _CACHED_WINDOW = 1 << 16
 # The white-noise floor is read from the spectrum above this multiple of the oscillation's
 # frequency.
 _NOISE_BAND = 2.5
+# Fewest samples a cycle of a waveform whose crests can be placed (the waveform fit takes
+# the record from 4; the half-cycle fits are biased below SAMPLES_PER_CYCLE).
+MIN_SAMPLES_PER_CYCLE = 4
+# The spectrum's period of a record at 4 samples a cycle, 30 cycles, reads 3.99 samples.
+_SAMPLING_SLACK = 0.05
 
 
 def _find_gaps(tf, steps, dt):
@@ -44,6 +49,17 @@ def _checked_period(period, dt, source):
         raise RecordError(f"no oscillation found in {source}: the spectrum peaks at a period "
                           f"of {period:.3g}, under 2 samples. Check the signal column.")
     return period
+
+
+def _checked_sampling(samples_per_cycle, source):
+    """``samples_per_cycle``, or RecordError when it is under MIN_SAMPLES_PER_CYCLE (less
+    the spectral period's error, _SAMPLING_SLACK): a crest between samples a third of a
+    cycle apart has no sample near it."""
+    if samples_per_cycle < (1 - _SAMPLING_SLACK) * MIN_SAMPLES_PER_CYCLE:
+        raise RecordError(f"{source} is sampled at {samples_per_cycle:.2g} samples a cycle: "
+                          "too few to place the crests; need at least "
+                          f"{MIN_SAMPLES_PER_CYCLE}. Record at a higher sampling rate.")
+    return samples_per_cycle
 
 
 def _gap_note(gaps, period):
@@ -126,13 +142,40 @@ def _cached_hann(m):
 
 def _spectral_noise(power, frequencies, f0, energy, x):
     """White-noise sigma from the periodogram's floor above _NOISE_BAND*f0 (``energy``: the
-    window's sum of squares)."""
+    window's sum of squares); where that band is too narrow, from differences: the first
+    ones, or under SAMPLES_PER_CYCLE samples a cycle (the first differences of a sine at 4
+    to 6 samples a cycle are as large as the sine: "no oscillation above the noise")
+    those of :func:`_notch_noise`."""
     band = power[frequencies > _NOISE_BAND * f0]
     if band.size >= 16:
         return float(np.sqrt(_median(band) / (np.log(2) * energy)))
+    if 0 < f0 and frequencies[-1] < 0.5 * SAMPLES_PER_CYCLE * f0:
+        return _notch_noise(x, f0 / (2 * frequencies[-1]))
     # Too few samples per cycle for a clean band: differences overestimate, safely.
     d = np.diff(x)
     return float(_robust_sigma(d) / np.sqrt(2))
+
+
+# Notch filters at the oscillation's frequency applied one after another: a damped sine
+# at Q = 40 and 4 samples a cycle passes about (2*pi/(8*Q))**3, 6e-6 of its amplitude.
+_NOTCHES = 3
+
+
+def _notch_noise(x, cycles_per_sample):
+    """White-noise sigma of ``x``, an oscillation of ``cycles_per_sample`` (up to 0.5)
+    sampled few times a cycle, from the robust scale of ``x`` filtered by a first
+    difference (the offset) and _NOTCHES notches ``x[i-1] - 2*cos(w)*x[i] + x[i+1]`` at the
+    oscillation's frequency, divided by the filter's gain for white noise. An overestimate
+    where damping is strong or the frequency drifts: the crest search needs the noise's
+    order only, the waveform fit of such a record takes it from its residuals."""
+    notch = np.array([1.0, -2.0 * np.cos(2.0 * np.pi * cycles_per_sample), 1.0])
+    kernel = np.array([1.0, -1.0])
+    for _ in range(_NOTCHES):
+        kernel = np.convolve(kernel, notch)
+    if x.size <= kernel.size:
+        return float(_robust_sigma(np.diff(x)) / np.sqrt(2))
+    filtered = np.convolve(x, kernel, mode="valid")
+    return float(_robust_sigma(filtered) / np.linalg.norm(kernel))
 
 
 def _in_long_gaps(grid, t, steps, dt):
