@@ -76,26 +76,26 @@ def test_noise_does_not_create_false_extrema(rng):
     assert np.all(points.sign[1:] != points.sign[:-1])
 
 
-def test_decay_into_white_noise_is_followed_while_its_phase_is_known(rng):
-    # The crests are kept, as projections onto the crest phase, while that phase is known
-    # to 0.1 rad; the faint tail after it, which carries little on the decay and where a
-    # noise crest can slip the phase, is excluded.
+def test_decay_into_white_noise_is_followed_until_lost(rng):
+    # The crests are kept, as projections onto the crest phase, while a group of them still
+    # shows the oscillation; only the pure-noise tail after that is excluded.
     law = (1.0, 0.0, 0.1, 0.0)
     t, x = waveform(50, cycles=80, noise=0.01, law=law, rng=rng)
     points = find_turning_points(t, x)
     sigma_y = np.median(points.sigma[points.used])
-    assert 3 * sigma_y < amplitude(points.noise_floor_time, *law) < 10 * sigma_y
+    assert amplitude(points.noise_floor_time, *law) < 2 * sigma_y
     assert points.noise_floor_time < 75
-    assert any("crest phase is lost" in note for note in points.notes)
+    assert any("noise" in note for note in points.notes)
     used = points.used
+    assert np.any(points.y[used] < 0)  # noise about a vanishing envelope, kept signed
     z = (points.y[used] - amplitude(points.t[used], *law)) / points.sigma[used]
     assert np.all(np.abs(z) < 5)
-    assert abs(np.mean(z)) < 4 / np.sqrt(z.size)  # unbiased down to the last crest kept
+    assert abs(np.mean(z)) < 4 / np.sqrt(z.size)  # unbiased down into the noise
 
 
 def test_projections_are_unbiased_near_the_noise(rng):
     # Magnitudes of two-parameter fits are biased upwards near the noise (Rician); the
-    # projections onto the smoothed crest phase are not, down to the faintest kept.
+    # projections onto the smoothed crest phase are not.
     law = (1.0, 0.0, 0.1, 0.0)
     z = []
     for _ in range(10):
@@ -103,10 +103,10 @@ def test_projections_are_unbiased_near_the_noise(rng):
         points = find_turning_points(t, x)
         used = points.used
         truth = amplitude(points.t[used], *law)
-        low = truth < 10 * points.sigma[used]
+        low = truth < 3 * points.sigma[used]
         z.append(((points.y[used] - truth) / points.sigma[used])[low])
     z = np.concatenate(z)
-    assert z.size > 50
+    assert z.size > 100
     assert abs(np.mean(z)) < 3 / np.sqrt(z.size)
     assert np.std(z) == pytest.approx(1.0, abs=0.15)
 

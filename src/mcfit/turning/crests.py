@@ -16,9 +16,10 @@ _PHASE_HALF_WIDTH = 10
 # Beyond this phase variance (rad**2) a crest's phase is mostly noise: its projection's
 # bias is corrected no further.
 _LARGEST_PHASE_VARIANCE = 1.0
-# Crests whose smoothed phase is known to this variance (rad**2; 0.1 rad) are used; from
-# the first where it is not (a running median), the phase is lost in the noise.
+# Crests whose smoothed phase is known to this variance (rad**2; 0.1 rad) are used, and
+# _FAINT_CRESTS after the first where it is not (a running median); the tail beyond is left.
 _KEPT_PHASE_VARIANCE = 0.01
+_FAINT_CRESTS = 100
 # Crests whose phase is known to 0.1 rad (inverse variance 100 rad**-2) are numbered
 # reliably by their spacing; the others are numbered against them (_renumbered).
 _RELIABLE_PHASE_WEIGHT = 100.0
@@ -335,17 +336,21 @@ def _crest_sequence(times, signs, half, weights, limit):
 
 
 def _phase_kept(variance):
-    """The number of crests from the first whose phase is known: up to the first from
-    which the running median of the phase variance passes _KEPT_PHASE_VARIANCE, after
-    it was below (a faint tail, where a noise crest can slip the phase by a radian and
-    the bias correction no longer holds; the crests beyond carry little on the decay).
-    All of them where the phase is never known that well (a faint record throughout)."""
+    """The number of crests kept from the first: up to _FAINT_CRESTS past the first from
+    which the running median of the phase variance passes _KEPT_PHASE_VARIANCE, after it
+    was below. In a long faint tail the crests are numbered against the well-measured
+    ones by a line continued past them, and over thousands of crests a noise crest slips
+    the phase by a radian, where the bias correction no longer holds; a short faint end
+    (a decay of tens of cycles) keeps all its crests, which carry a Coulomb term. All of
+    them where the phase is never known that well (a faint record throughout)."""
     typical = _running_median(np.nan_to_num(variance, nan=0.0), _ENVELOPE_CRESTS)
     known = np.flatnonzero(typical <= _KEPT_PHASE_VARIANCE)
     if known.size == 0:
         return variance.size
     lost = np.flatnonzero(typical[known[0]:] > _KEPT_PHASE_VARIANCE)
-    return int(known[0] + lost[0]) if lost.size else variance.size
+    if lost.size == 0:
+        return variance.size
+    return min(int(known[0] + lost[0]) + _FAINT_CRESTS, variance.size)
 
 
 def _renumbered(numbers, times, signs, weights, reliable, first_sign):

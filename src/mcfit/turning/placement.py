@@ -51,6 +51,8 @@ _MIN_BLOCK_SAMPLES = 8
 # and by this many amplitude standard errors.
 _RISE_FACTOR = 2.0
 _RISE_Z = 5.0
+# Blocks before a rise over which a fall into it marks a dip.
+_DIP_BLOCKS = 4
 # Within a run, a later amplitude above this many standard errors (and this fraction of
 # the block's) over a block's shows the envelope still rising.
 _LATER_Z = 4.0
@@ -329,10 +331,15 @@ def _time(t, blocks, index):
 
 def _onsets(amplitude, sigma):
     """Blocks where a new excitation starts: the amplitude at least _RISE_FACTOR times
-    that of two blocks before, by _RISE_Z standard errors."""
+    that of two blocks before, by _RISE_Z standard errors, after a level that did not
+    itself fall by _RISE_FACTOR into the rise (a beat's minimum, a low Q's fast decay:
+    a dip, not an excitation)."""
     before = np.maximum(amplitude[:-2], amplitude[1:-1])
     rise = (amplitude[2:] >= _RISE_FACTOR * before) & (amplitude[2:] - before > _RISE_Z * sigma)
     onsets = np.flatnonzero(rise) + 2
+    earlier = np.array([amplitude[max(j - 2 - _DIP_BLOCKS, 0):j - 1].max() for j in onsets])
+    trough = np.array([amplitude[j - 2:j].min() for j in onsets])
+    onsets = onsets[earlier < _RISE_FACTOR * trough + _RISE_Z * sigma] if onsets.size else onsets
     # One excitation rises over a few blocks: keep the first block of each rise.
     keep = np.concatenate(([True], np.diff(onsets) > 2)) if onsets.size else onsets
     return onsets[keep] - 1  # the block before the rise already holds its start

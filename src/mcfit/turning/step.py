@@ -13,7 +13,7 @@ away from its centre, has none on one side), where the local mean is a line with
 of the kernel's shape within ``_SHAPE`` of the step, is a step. Its time and size are
 fitted to that shape; up to ``_MOST`` steps are found. The jumps of a step-free record
 stand 1.6 to 3.3 times their scatter beyond it (white noise, drift, a random walk, a hum;
-THEORY.md has no section on it: see tests/test_equilibrium_step.py).
+the tests in tests/test_equilibrium_step.py hold these figures).
 
 numpy only, no I/O.
 """
@@ -36,6 +36,7 @@ _SMALLEST = 0.01      # ... and is at least this fraction of the local amplitude
 _LARGEST = 5.0        # ... and at most this many times the amplitude on either side,
 _LOUD = 3.0           # ... which is this many noise sigmas at least
 _SHAPE = 0.15         # rms misfit of the step's shape, as a fraction of the step, at most
+_HOLD = 12.0          # periods each side over which the levels must hold
 _MOST = 3             # steps found at most
 _FEWEST_JUMPS = 8     # periods of jumps a record needs for their scatter
 _BLOCK = 1 << 20      # samples per block of the running integral
@@ -194,9 +195,29 @@ def _strongest_step(centres, mean, amplitude, period, noise):
     # stopped by dry friction away from its centre.
     loud = min(before, after) >= max(abs(size) / _LARGEST, _LOUD * noise)
     if not (abs(size) > _Z * scatter and misfit <= _SHAPE * abs(size)
-            and _SMALLEST * there <= abs(size) and loud):
+            and _SMALLEST * there <= abs(size) and loud
+            and _levels_hold(centres, mean, time, size, period)):
         return None
     return EquilibriumStep(float(time), float(size), float(there))
+
+
+def _levels_hold(centres, mean, time, size, period):
+    """Whether the local mean holds its level on each side of a step at ``time``, from the
+    ramp's end out to _HOLD periods: a line within _SHAPE of the step there, the two lines
+    ``size`` apart at the step. A slow oscillation (a second mode's remnant under a fast
+    one) makes half a period look like a step, and does not hold."""
+    sides = []
+    for inner, outer in ((-_HOLD, -2.0), (2.0, _HOLD)):
+        inside = ((centres >= time + inner * period) & (centres <= time + outer * period)
+                  & np.isfinite(mean))
+        if np.count_nonzero(inside) < _GRID:
+            return False
+        z = (centres[inside] - time) / period
+        line = np.polyfit(z, mean[inside], 1)
+        if np.sqrt(np.mean((mean[inside] - np.polyval(line, z)) ** 2)) > _SHAPE * abs(size):
+            return False
+        sides.append(np.polyval(line, 0.0))
+    return abs(sides[1] - sides[0] - size) <= _SHAPE * abs(size) * 2
 
 
 def _fitted_step(centres, mean, k, period):
