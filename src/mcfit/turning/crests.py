@@ -16,10 +16,16 @@ _PHASE_HALF_WIDTH = 10
 # Beyond this phase variance (rad**2) a crest's phase is mostly noise: its projection's
 # bias is corrected no further.
 _LARGEST_PHASE_VARIANCE = 1.0
-# Crests whose smoothed phase is known to this variance (rad**2; 0.1 rad) are used, and
-# _FAINT_CRESTS after the first where it is not (a running median); the tail beyond is left.
+# A faint tail, from the first crest where the running median of the smoothed phase's
+# variance passes this (rad**2; 0.1 rad), is left out where it is longer than
+# _LONG_FAINT_TAIL crests: over a long faint tail, numbered against the bright crests by
+# a line continued past them, a noise crest slips the phase by a radian, and the
+# projections come out low (a decay that seems to speed up: false Coulomb and fluid
+# terms); it carries little on the decay. A short faint end (a decay of tens of
+# cycles into the noise or to a Coulomb stop) keeps its crests: they are unbiased there
+# and carry a Coulomb term.
 _KEPT_PHASE_VARIANCE = 0.01
-_FAINT_CRESTS = 100
+_LONG_FAINT_TAIL = 200
 # Crests whose phase is known to 0.1 rad (inverse variance 100 rad**-2) are numbered
 # reliably by their spacing; the others are numbered against them (_renumbered).
 _RELIABLE_PHASE_WEIGHT = 100.0
@@ -45,11 +51,11 @@ def _projected_crests(samples, m, period, line, decay, limit):
     crests, crest_signs, phase_variance, phase_lost = _crest_sequence(
         m.crest_times[decay], m.signs[decay], half[decay], weights[decay], limit)
     del weights
-    kept = _phase_kept(phase_variance)
-    if kept < crests.size:  # from here on, the phase is not known well enough
-        phase_lost = float(crests[kept])
-        crests, crest_signs, phase_variance = (crests[:kept], crest_signs[:kept],
-                                               phase_variance[:kept])
+    faint = _faint_from(phase_variance)
+    if crests.size - faint > _LONG_FAINT_TAIL:  # a long tail whose phase is not known
+        phase_lost = float(crests[faint])
+        crests, crest_signs, phase_variance = (crests[:faint], crest_signs[:faint],
+                                               phase_variance[:faint])
     in_decay = np.zeros(m.centres.size, dtype=bool)
     in_decay[decay] = True
     reliable = m.measured & in_decay & (m.magnitude > _RELIABLE_SNR * m.magnitude_sigma)
@@ -335,22 +341,16 @@ def _crest_sequence(times, signs, half, weights, limit):
     return smooth[ordered], crest_signs[ordered], variance[ordered], phase_lost
 
 
-def _phase_kept(variance):
-    """The number of crests kept from the first: up to _FAINT_CRESTS past the first from
-    which the running median of the phase variance passes _KEPT_PHASE_VARIANCE, after it
-    was below. In a long faint tail the crests are numbered against the well-measured
-    ones by a line continued past them, and over thousands of crests a noise crest slips
-    the phase by a radian, where the bias correction no longer holds; a short faint end
-    (a decay of tens of cycles) keeps all its crests, which carry a Coulomb term. All of
-    them where the phase is never known that well (a faint record throughout)."""
+def _faint_from(variance):
+    """The first crest from which the running median of the smoothed phase variance
+    passes _KEPT_PHASE_VARIANCE, after it was below (the crests' size if none): the
+    start of the faint tail."""
     typical = _running_median(np.nan_to_num(variance, nan=0.0), _ENVELOPE_CRESTS)
     known = np.flatnonzero(typical <= _KEPT_PHASE_VARIANCE)
     if known.size == 0:
         return variance.size
     lost = np.flatnonzero(typical[known[0]:] > _KEPT_PHASE_VARIANCE)
-    if lost.size == 0:
-        return variance.size
-    return min(int(known[0] + lost[0]) + _FAINT_CRESTS, variance.size)
+    return int(known[0] + lost[0]) if lost.size else variance.size
 
 
 def _renumbered(numbers, times, signs, weights, reliable, first_sign):

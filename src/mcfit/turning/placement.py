@@ -306,20 +306,24 @@ def _quiet_from(blocks, free, high, sigma):
 
 
 def _departure(t, x, blocks, low, free, period):
-    """The moment the signal leaves the still level it held at the start of the blocks
-    ``low:free`` before a free decay (a rest, a hold), to the sample; None where it was
-    not still there. The level and its band are those of the first quarter-period."""
-    begin, end = low * blocks.size, free * blocks.size
+    """The moment the signal leaves the still level it held before a free decay (a rest,
+    a hold), to the sample, searched in the block before the first free one (a knock
+    long before the release does not end the rest); None where it was not still there.
+    The level and its band are those of the quarter-period before that block, or of
+    that block's first quarter-period when it is the stretch's first."""
     dt = t[1] - t[0]
     quarter = max(3, int(round(0.25 * period / dt)))
+    search = (free - 1) * blocks.size
+    begin = search - quarter if search - quarter >= low * blocks.size else search
     still = x[begin:begin + quarter]
     level = float(np.median(still))
     band = float(np.max(np.abs(still - level)))
     if not band < _STILL_SHARE * blocks.amplitude[free]:
         return None
-    away = np.abs(x[begin + quarter:end] - level) > _DEPARTURE_FACTOR * band
+    start = begin + quarter
+    away = np.abs(x[start:free * blocks.size] - level) > _DEPARTURE_FACTOR * band
     moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one spike
-    return float(t[begin + quarter + moving[0]]) if moving.size else None
+    return float(t[start + moving[0]]) if moving.size else None
 
 
 def _time(t, blocks, index):
