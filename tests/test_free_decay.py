@@ -183,3 +183,16 @@ def test_a_release_after_steady_swinging_starts_after_its_straddling_crest(seed)
     assert fit.model == "abc"
     assert all(_within(fit, name, truth, z=2.6)
                for name, truth in (("a", 0.1), ("b", 0.1), ("c", 0.01)))
+
+
+def test_a_swing_built_up_from_rest_is_left_out():
+    """A drive builds the swing up from rest over 5 cycles, then lets it decay freely
+    (b = 0.03, Q about 100): the build-up is left out before the turning points, and
+    the fit starts after it."""
+    t = np.arange(0.0, 40.0, 0.02)
+    envelope = np.where(t < 5.0, t / 5.0, np.exp(-0.03 * (t - 5.0)))
+    x = envelope * np.sin(2 * np.pi * t) + np.random.default_rng(3).normal(0, 0.005, t.size)
+    result = analyse(t, x)
+    assert result.record.left_out and 5.0 <= result.record.t[0] < 6.5
+    assert result.fit.model == "b" and _within(result.fit, "b", 0.03)
+    assert result.turning.t[result.turning.used].min() > 5.0

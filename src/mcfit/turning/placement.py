@@ -59,8 +59,10 @@ _LATER_Z = 4.0
 _LATER_FRACTION = 0.02
 # A transient: residuals, for the amplitude, this many times the median of those of the
 # blocks within _AHEAD after it that swing at least _SIMILAR of its amplitude (at least
-# _MIN_ALIKE of them), beyond the noise.
+# _MIN_ALIKE of them), beyond the noise; or a level that moves this many times as much
+# as the levels after it, and by _TRANSIENT_Z amplitude sigmas.
 _TRANSIENT_FACTOR = 3.0
+_TRANSIENT_Z = 5.0
 _AHEAD = 64
 _SIMILAR = 0.7
 _MIN_ALIKE = 4
@@ -68,7 +70,7 @@ _MIN_ALIKE = 4
 _SCAN = 256
 # A still stretch swings by less than this share of the decay's first amplitude; the
 # signal has left it where it is this many times its band away from its level.
-_STILL_SHARE = 0.1
+_STILL_SHARE = 0.05
 _DEPARTURE_FACTOR = 3.0
 # The noise after a decay is left out where it is more than this share of the record
 # (judged over windows of _QUIET_WINDOW blocks, swinging above _QUIET_Z amplitude sigmas).
@@ -215,6 +217,7 @@ class _Blocks:
     amplitude: np.ndarray
     residual: np.ndarray  # rms of the residuals
     size: int  # samples per block
+    level: np.ndarray | None = None  # the fitted line at each block's middle
 
 
 def _demodulated(t, x, frequency):
@@ -230,11 +233,12 @@ def _demodulated(t, x, frequency):
              for first in range(0, count, step)]
     return _Blocks(start=np.arange(count) * size,
                    amplitude=np.concatenate([p[0] for p in parts]),
-                   residual=np.concatenate([p[1] for p in parts]), size=size)
+                   residual=np.concatenate([p[1] for p in parts]), size=size,
+                   level=np.concatenate([p[2] for p in parts]))
 
 
 def _block_fits(t, x, frequency, size, first, stop):
-    """(amplitude, rms residual) of blocks ``first:stop`` of ``size`` samples."""
+    """(amplitude, rms residual, level) of blocks ``first:stop`` of ``size`` samples."""
     shape = (stop - first, size)
     span = slice(first * size, stop * size)
     phase = 2 * np.pi * frequency * (t[span] - t[0])
@@ -247,7 +251,7 @@ def _block_fits(t, x, frequency, size, first, stop):
     coefficients = np.linalg.solve(normal, right)[..., 0]
     residual = values - np.einsum("kni,ki->kn", design, coefficients)
     return (np.hypot(coefficients[:, 2], coefficients[:, 3]),
-            np.sqrt(np.mean(residual * residual, axis=1)))
+            np.sqrt(np.mean(residual * residual, axis=1)), coefficients[:, 0])
 
 
 def _placement(t, x, blocks, period):
@@ -270,6 +274,8 @@ def _placement(t, x, blocks, period):
                 left_out.append((_time(t, blocks, low), _time(t, blocks, high),
                                  _why_not_run(swing, amplitude_sigma)))
             continue
+        if low == 0 and free > 0 and not _still_at_start(t, x, blocks, free, period):
+            free = 0  # swinging from the record's start: the turning points judge that
         first = _time(t, blocks, free)
         if free > low:
             why = _why(blocks, low, free)
@@ -305,23 +311,46 @@ def _quiet_from(blocks, free, high, sigma):
     return quiet if high - quiet > _QUIET_SHARE * blocks.amplitude.size else None
 
 
+def _still_at_start(t, x, blocks, free, period):
+    """Whether the record starts still (a rest, a hold, a quiet pre-trigger): its first
+    quarter-period, or a block before the free decay, swings under _STILL_SHARE of the
+    decay's amplitude."""
+    quarter = max(3, int(round(0.25 * period / (t[1] - t[0]))))
+    still = x[:quarter]
+    limit = _STILL_SHARE * blocks.amplitude[free]
+    band = float(np.max(np.abs(still - np.median(still))))
+    return band < limit or bool(blocks.amplitude[:free].min() < limit)
+
+
 def _departure(t, x, blocks, low, free, period):
     """The moment the signal leaves the still level it held before a free decay (a rest,
-    a hold), to the sample, searched in the block before the first free one (a knock
-    long before the release does not end the rest); None where it was not still there.
-    The level and its band are those of the quarter-period before that block, or of
-    that block's first quarter-period when it is the stretch's first."""
-    dt = t[1] - t[0]
-    quarter = max(3, int(round(0.25 * period / dt)))
+    a hold), to the sample; None where it was not still. Searched first in the block
+    before the first free one, against the quarter-period before that block (a knock
+    long before the release does not end the rest), then from the stretch's start,
+    against its first quarter-period (a swing that builds up slowly from rest)."""
+    quarter = max(3, int(round(0.25 * period / (t[1] - t[0]))))
     search = (free - 1) * blocks.size
-    begin = search - quarter if search - quarter >= low * blocks.size else search
+    for begin in (search - quarter, low * blocks.size):
+        if begin < low * blocks.size:
+            continue
+        found = _left_level(t, x, begin, quarter, free * blocks.size,
+                            _STILL_SHARE * blocks.amplitude[free])
+        if found is not None:
+            return found
+    return None
+
+
+def _left_level(t, x, begin, quarter, end, largest_band):
+    """The first of two samples from ``begin + quarter`` to ``end`` that are
+    _DEPARTURE_FACTOR times the band of ``x[begin:begin + quarter]`` from its median,
+    where that band is under ``largest_band``; else None."""
     still = x[begin:begin + quarter]
     level = float(np.median(still))
     band = float(np.max(np.abs(still - level)))
-    if not band < _STILL_SHARE * blocks.amplitude[free]:
+    if not band < largest_band:
         return None
     start = begin + quarter
-    away = np.abs(x[start:free * blocks.size] - level) > _DEPARTURE_FACTOR * band
+    away = np.abs(x[start:end] - level) > _DEPARTURE_FACTOR * band
     moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one spike
     return float(t[start + moving[0]]) if moving.size else None
 
@@ -351,28 +380,37 @@ def _onsets(amplitude, sigma):
 
 def _free_stretch(blocks, low, high, sigma, noise):
     """(first free block, end block) of the stretch of blocks ``low:high``: the first
-    block that is neither still rising nor a transient, judged _SCAN blocks at a time."""
+    block that is neither still rising nor a transient, judged _SCAN blocks at a time.
+    A transient shows in a block's residuals (a strike's other modes, a hand letting
+    go) or in its level, off both its neighbours' (a slow mode's remnant under a fast
+    one, such as a struck fork's thump, which a block's line takes up but the decay's
+    equilibrium does not; a release or a hold moves it once)."""
     amplitude, residual = blocks.amplitude[low:high], blocks.residual[low:high]
     later = np.maximum.accumulate(amplitude[::-1])[::-1]  # the largest from each on
     later = np.concatenate((later[1:], [0.0]))
     rising = later > amplitude + _LATER_Z * sigma + _LATER_FRACTION * amplitude
+    moves = np.abs(np.diff(blocks.level[low:high]))
+    level_moves = np.minimum(np.concatenate(([np.nan], moves)), np.concatenate((moves, [np.nan])))
+    level_moves = np.nan_to_num(level_moves, nan=0.0)
     for first in range(0, amplitude.size, _SCAN):
         stop = min(first + _SCAN, amplitude.size)
         free = np.flatnonzero(~(rising[first:stop]
-                                | _transient(amplitude, residual, noise, first, stop)))
+                                | _transient(amplitude, residual, noise, first, stop)
+                                | _transient(amplitude, level_moves, _TRANSIENT_Z * sigma,
+                                             first, stop)))
         if free.size:
             return low + first + int(free[0]), high
     return high, high
 
 
-def _transient(amplitude, residual, noise, first, stop):
-    """Whether each block ``first:stop`` is a transient: its residuals, for its amplitude,
-    _TRANSIENT_FACTOR times those of the blocks within _AHEAD after it that swing at least
-    _SIMILAR of its amplitude (a harmonic or a period that changes with amplitude is alike
-    there; a strike's other modes, a hand letting go are not). Where the amplitude falls
-    faster, no judgement."""
+def _transient(amplitude, spread, floor, first, stop):
+    """Whether each block ``first:stop`` is a transient: its ``spread`` (residual scatter
+    or level move), for its amplitude, _TRANSIENT_FACTOR times that of the blocks within
+    _AHEAD after it that swing at least _SIMILAR of its amplitude (a harmonic or a period
+    that changes with amplitude is alike there; a strike's other modes, a hand letting go
+    are not), and beyond ``floor``. Where the amplitude falls faster, no judgement."""
     count = stop - first
-    ratio = residual / np.maximum(amplitude, 1e-300)
+    ratio = spread / np.maximum(amplitude, 1e-300)
     padding = np.zeros(_AHEAD)
     ahead_ratio = np.concatenate((ratio[first + 1:stop + _AHEAD], padding))
     ahead_amplitude = np.concatenate((amplitude[first + 1:stop + _AHEAD], padding))
@@ -381,7 +419,7 @@ def _transient(amplitude, residual, noise, first, stop):
     alike = windows(ahead_amplitude, _AHEAD)[:count] >= _SIMILAR * own
     enough = np.count_nonzero(alike, axis=1) >= _MIN_ALIKE
     typical = _masked_median(windows(ahead_ratio, _AHEAD)[:count], alike)
-    return enough & (residual[first:stop] > _TRANSIENT_FACTOR * typical * own[:, 0] + noise)
+    return enough & (spread[first:stop] > _TRANSIENT_FACTOR * typical * own[:, 0] + floor)
 
 
 def _masked_median(values, mask):
