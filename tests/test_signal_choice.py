@@ -71,11 +71,16 @@ def test_the_logger_channel_that_swings_is_the_signal(tmp_path):
     # the explicit + signs are read as numbers: the held part is AMPLITUDE above 12000
     assert record.x[0] == pytest.approx(12000 + AMPLITUDE, abs=20)
 
-    result, data = _json_fit(path, "--start", f"{release + 5:.1f}")
-    assert result.exit_code == 0, result.output
-    assert data["columns"] == {"time": "Timestamp", "signal": "Laser"}
-    assert data["period"] == pytest.approx(PERIOD, rel=1e-3)
-    assert data["params"]["b"]["value"] == pytest.approx(B, rel=1e-2)
+    # The epoch clock is read from the record's first row: --start is seconds into it.
+    # With no window, the hold is left out before the turning points.
+    assert release == EPOCH + HOLD
+    for options in (("--start", f"{HOLD + 5:.1f}"), ()):
+        result, data = _json_fit(path, *options)
+        assert result.exit_code == 0, result.output
+        assert data["columns"] == {"time": "Timestamp", "signal": "Laser"}
+        assert data["period"] == pytest.approx(PERIOD, rel=1e-3)
+        assert data["params"]["b"]["value"] == pytest.approx(B, rel=1e-2)
+    assert HOLD <= data["release_time"] < HOLD + 0.5
 
 
 def test_forcing_the_noise_column_names_the_one_that_swings(tmp_path):

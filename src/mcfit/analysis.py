@@ -790,7 +790,10 @@ def _oscillating_hint(message, record, error):
     """``message`` of a record that shows no oscillation, naming the file's column that
     does (:attr:`Record.oscillating_columns`) in place of "Check the signal column."."""
     columns = getattr(record, "oscillating_columns", ())
-    if not columns or isinstance(error, UsageError) or "signal column" not in message:
+    # A noise column's spectrum peaks anywhere: "no oscillation" or "too few samples a
+    # cycle" are both about the column, which the other column's line answers.
+    about_column = "signal column" in message or "samples a cycle" in message
+    if not columns or isinstance(error, UsageError) or not about_column:
         return message
     name = columns[0]
     index = list(record.columns).index(name) + 1 if name in record.columns else None

@@ -289,6 +289,7 @@ def _placement(t, x, blocks, period):
         runs.append((first, _time(t, blocks, high if quiet is None else quiet)))
     if not left_out or not runs:
         return None
+    left_out = _merged(left_out)
     notes = _notes(runs, left_out, period)
     return Placement(runs=tuple(runs), left_out=tuple(left_out), period=period,
                      notes=tuple(notes))
@@ -324,16 +325,17 @@ def _still_at_start(t, x, blocks, free, period):
 
 def _departure(t, x, blocks, low, free, period):
     """The moment the signal leaves the still level it held before a free decay (a rest,
-    a hold), to the sample; None where it was not still. Searched first in the block
-    before the first free one, against the quarter-period before that block (a knock
-    long before the release does not end the rest), then from the stretch's start,
-    against its first quarter-period (a swing that builds up slowly from rest)."""
+    a hold), to the sample; None where it was not still. Searched first from the block
+    before the first free one to that block's end (a block that holds the end of a hold
+    can swing enough to count as free), against the quarter-period before (a knock long
+    before the release does not end the rest), then from the stretch's start, against
+    its first quarter-period (a swing that builds up slowly from rest)."""
     quarter = max(3, int(round(0.25 * period / (t[1] - t[0]))))
     search = (free - 1) * blocks.size
     for begin in (search - quarter, low * blocks.size):
         if begin < low * blocks.size:
             continue
-        found = _left_level(t, x, begin, quarter, free * blocks.size,
+        found = _left_level(t, x, begin, quarter, min((free + 1) * blocks.size, x.size),
                             _STILL_SHARE * blocks.amplitude[free])
         if found is not None:
             return found
@@ -353,6 +355,17 @@ def _left_level(t, x, begin, quarter, end, largest_band):
     away = np.abs(x[start:end] - level) > _DEPARTURE_FACTOR * band
     moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one spike
     return float(t[start + moving[0]]) if moving.size else None
+
+
+def _merged(left_out):
+    """Neighbouring stretches left out for the same reason as one."""
+    merged = [left_out[0]]
+    for start, end, why in left_out[1:]:
+        if why == merged[-1][2] and start <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], end, why)
+        else:
+            merged.append((start, end, why))
+    return merged
 
 
 def _time(t, blocks, index):
