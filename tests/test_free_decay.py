@@ -85,9 +85,10 @@ def test_a_fork_struck_twice_gives_two_runs(tmp_path):
         assert row["model"] == "b" and abs(value - b) <= 3 * stderr
         assert low < row["t0"] < low + 0.35
     # --run picks one of the free decays; one not there is named.
-    second = CliRunner().invoke(cli, [str(path), "--format", "json", "--run", "2"])
-    [row] = [json.loads(line) for line in second.output.splitlines()]
-    assert row["run"] == "Run 2" and 3.5 < row["t0"] < 3.85
+    for number, low in ((1, 0.5), (2, 3.5)):
+        one = CliRunner().invoke(cli, [str(path), "--format", "json", "--run", str(number)])
+        [row] = [json.loads(line) for line in one.output.splitlines()]
+        assert row["run"] == f"Run {number}" and low < row["t0"] < low + 0.35
     third = CliRunner().invoke(cli, [str(path), "--run", "3"])
     assert third.exit_code != 0 and "run 3 not found" in third.output
 
@@ -196,3 +197,41 @@ def test_a_swing_built_up_from_rest_is_left_out():
     assert result.record.left_out and 5.0 <= result.record.t[0] < 6.5
     assert result.fit.model == "b" and _within(result.fit, "b", 0.03)
     assert result.turning.t[result.turning.used].min() > 5.0
+
+
+def _rings(t, starts, rate):
+    return sum(_ring(t, start, 1.0, 2.0, rate) for start in starts)
+
+
+@pytest.mark.parametrize("rate", [0.1, 0.3])
+def test_a_fast_decay_struck_three_times_gives_three_runs(rate):
+    """At Q 63 and 21 (the decay falls by half or more over the blocks before the next
+    strike): each strike starts a run, and nothing of a decay is called a rest."""
+    t = np.arange(0, 60, 1 / 200.0)
+    x = _rings(t, (5.0, 25.0, 45.0), rate) + np.random.default_rng(1).normal(0, 1e-3, t.size)
+    placement = locate_free_decay(t, x)
+    assert len(placement.runs) == 3
+    for (start, _), strike in zip(placement.runs, (5.0, 25.0, 45.0)):
+        assert strike <= start < strike + 0.35
+    # Between two decays only the block before a strike is left out, not a decay.
+    assert all(end - start <= 1.1 for start, end, _ in placement.left_out[1:])
+
+
+def test_a_beat_of_two_modes_is_one_record_and_no_noise_floor():
+    """Two modes at 2.00 and 2.02 Hz: the amplitude falls into each beat's node and rises
+    again; no new excitation, and the node is no faint tail where the phase is lost."""
+    t = np.arange(0, 300, 1 / 200.0)
+    x = np.exp(-0.002 * t) * 0.5 * (np.cos(4 * np.pi * t) + np.cos(2 * np.pi * 2.02 * t))
+    x += np.random.default_rng(5).normal(0, 0.1, t.size)
+    assert not locate_free_decay(t, x).moved
+    result = analyse(t, x)
+    assert not any("crest phase is lost" in note for note in result.turning.notes)
+
+
+def test_a_drifting_rest_is_no_release():
+    """A rest whose level drifts (0.05 per second) before a release at 5 s."""
+    t = np.arange(0, 60, 1 / 200.0)
+    x = _ring(t, 5.0, 1.0, 2.0, 0.1, phase=0.0) + 0.05 * t
+    x += np.random.default_rng(2).normal(0, 1e-3, t.size)
+    [(start, _)] = locate_free_decay(t, x).runs
+    assert 4.99 <= start < 5.05

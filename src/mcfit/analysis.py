@@ -238,11 +238,12 @@ def free_decay_runs(record) -> list:
     are. The parts left out are in ``left_out`` and the notes."""
     from mcfit.turning.placement import locate_free_decay
 
-    if record.kind != "waveform" or record.domain != "time" or record.whole is not None:
+    if (record.kind != "waveform" or record.domain != "time" or record.whole is not None
+            or record.placed):
         return [record]
     placement = locate_free_decay(record.t, record.x)
     if not placement.moved:
-        return [record]
+        return [replace(record, placed=True)]
     several = len(placement.runs) > 1
     runs = []
     for number, (start, end) in enumerate(placement.runs, 1):
@@ -252,7 +253,7 @@ def free_decay_runs(record) -> list:
         if several:
             run = f"Run {number}" if record.run is None else f"{record.run}.{number}"
         runs.append(replace(record, t=record.t[low:high], x=record.x[low:high], run=run,
-                            notes=record.notes + placement.notes,
+                            notes=record.notes + placement.notes, placed=True,
                             left_out=placement.left_out, whole=(record.t, record.x)))
     return runs
 

@@ -313,14 +313,25 @@ def _free_decays(source, options):
         records = read(None)
         if len(records) != 1 or records[0].run is not None:
             raise
-        runs = free_decay_runs(records[0])
-        wanted = f"Run {options.run}"
-        chosen = [r for r in runs if r.run == wanted]
-        if not chosen:
-            raise UsageError(f"{error} (its free decays: {len(runs)})",
-                             option="run") from None
-        return chosen
+        return _free_decay_numbered(records[0], options.run, error)
+    if options.run is not None and len(records) == 1 and records[0].run is None:
+        return _free_decay_numbered(records[0], options.run, None)
     return [run for record in records for run in free_decay_runs(record)]
+
+
+def _free_decay_numbered(record, number, error):
+    """[the free decay ``Run {number}`` of a record of one run] (the record itself for
+    number 1 where it has one free decay); UsageError where there is no such one."""
+    from mcfit.analysis import free_decay_runs
+
+    runs = free_decay_runs(record)
+    if len(runs) == 1 and runs[0].run is None and int(number) == 1:
+        return runs
+    chosen = [r for r in runs if r.run == f"Run {number}"]
+    if not chosen:
+        said = error or f"run {number} not found in {record.source}; it holds one run."
+        raise UsageError(f"{said} (its free decays: {len(runs)})", option="run")
+    return chosen
 
 
 def run_plot_path(plot_path, run):

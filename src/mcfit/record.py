@@ -72,6 +72,7 @@ class Record:
     run: str | None = None
     left_out: tuple = ()
     whole: tuple | None = field(default=None, repr=False)
+    placed: bool = False  # whether the free decay was looked for (free_decay_runs)
     time_origin: dict | None = None
     oscillating_columns: tuple[str, ...] = ()
 

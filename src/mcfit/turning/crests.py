@@ -342,15 +342,17 @@ def _crest_sequence(times, signs, half, weights, limit):
 
 
 def _faint_from(variance):
-    """The first crest from which the running median of the smoothed phase variance
-    passes _KEPT_PHASE_VARIANCE, after it was below (the crests' size if none): the
-    start of the faint tail."""
+    """The start of the faint tail: the first crest where the running median of the
+    smoothed phase variance passes _KEPT_PHASE_VARIANCE after the last where it is
+    clearly known (within a quarter of that); the crests' size where there is none. A
+    beat's node, where the phase is lost for a while and found again clearly, is no
+    faint tail; a faint tail hovers about the limit, then leaves it."""
     typical = _running_median(np.nan_to_num(variance, nan=0.0), _ENVELOPE_CRESTS)
-    known = np.flatnonzero(typical <= _KEPT_PHASE_VARIANCE)
-    if known.size == 0:
+    clear = np.flatnonzero(typical <= 0.25 * _KEPT_PHASE_VARIANCE)
+    if clear.size == 0:
         return variance.size
-    lost = np.flatnonzero(typical[known[0]:] > _KEPT_PHASE_VARIANCE)
-    return int(known[0] + lost[0]) if lost.size else variance.size
+    lost = np.flatnonzero(typical[clear[-1]:] > _KEPT_PHASE_VARIANCE)
+    return int(clear[-1] + lost[0]) if lost.size else variance.size
 
 
 def _renumbered(numbers, times, signs, weights, reliable, first_sign):

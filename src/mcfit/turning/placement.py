@@ -42,6 +42,8 @@ _MIN_VOTES = 3
 # A stretch's spectral line counts where it stands this many times over the median of its
 # spectrum (pure noise's highest bin of 10^4 stands about 13 times over).
 _STRONG_LINE = 30.0
+# A frequency above this many cycles a sample (under 4 samples a cycle) is not placed.
+_FASTEST = 0.25
 # Samples demodulated at a time (bounds the memory of a long record).
 _CHUNK_SAMPLES = 1 << 18
 # Periods in one demodulation block, and the fewest samples in one.
@@ -135,7 +137,7 @@ def locate_free_decay(t, x) -> Placement:
         return whole
     dt = (t[-1] - t[0]) / (t.size - 1)
     frequency = _steady_frequency(x, dt)
-    if frequency is None:
+    if frequency is None or frequency * dt > _FASTEST:
         return whole
     blocks = _demodulated(t, x, frequency)
     if blocks is None:
@@ -281,8 +283,13 @@ def _placement(t, x, blocks, period):
             why = _why(blocks, low, free)
             departure = None if why == "transient" else _departure(
                 t, x, blocks, low, free, period)
-            first, why = (departure, "rest") if departure is not None else (first, why)
-            left_out.append((_time(t, blocks, low), first, why))
+            if departure is not None and departure < _time(t, blocks, free - 1):
+                # Built up over whole blocks after the rest: rest, then rising.
+                left_out += [(_time(t, blocks, low), departure, "rest"),
+                             (departure, first, "rising")]
+            else:
+                first, why = (departure, "rest") if departure is not None else (first, why)
+                left_out.append((_time(t, blocks, low), first, why))
         quiet = _quiet_from(blocks, free, high, amplitude_sigma)
         if quiet is not None:
             left_out.append((_time(t, blocks, quiet), _time(t, blocks, high), "noise"))
@@ -327,10 +334,11 @@ def _departure(t, x, blocks, low, free, period):
     """The moment the signal leaves the still level it held before a free decay (a rest,
     a hold), to the sample; None where it was not still. Searched first from the block
     before the first free one to that block's end (a block that holds the end of a hold
-    can swing enough to count as free), against the quarter-period before (a knock long
-    before the release does not end the rest), then from the stretch's start, against
-    its first quarter-period (a swing that builds up slowly from rest)."""
-    quarter = max(3, int(round(0.25 * period / (t[1] - t[0]))))
+    can swing enough to count as free), against the half-period before (a knock long
+    before the release does not end the rest; a line fits a quarter of a swing too
+    well), then from the stretch's start, against its first half-period (a swing that
+    builds up slowly from rest)."""
+    quarter = max(3, int(round(0.5 * period / (t[1] - t[0]))))  # a half-period
     search = (free - 1) * blocks.size
     for begin in (search - quarter, low * blocks.size):
         if begin < low * blocks.size:
@@ -344,15 +352,17 @@ def _departure(t, x, blocks, low, free, period):
 
 def _left_level(t, x, begin, quarter, end, largest_band):
     """The first of two samples from ``begin + quarter`` to ``end`` that are
-    _DEPARTURE_FACTOR times the band of ``x[begin:begin + quarter]`` from its median,
-    where that band is under ``largest_band``; else None."""
-    still = x[begin:begin + quarter]
-    level = float(np.median(still))
-    band = float(np.max(np.abs(still - level)))
+    _DEPARTURE_FACTOR times the band of ``x[begin:begin + quarter]`` about its line from
+    that line continued, where that band is under ``largest_band``; else None."""
+    # The still level as a line: a drift is no departure.
+    span = t[begin:begin + quarter]
+    slope, level = np.polyfit(span - span[0], x[begin:begin + quarter], 1)
+    band = float(np.max(np.abs(x[begin:begin + quarter] - level - slope * (span - span[0]))))
     if not band < largest_band:
         return None
     start = begin + quarter
-    away = np.abs(x[start:end] - level) > _DEPARTURE_FACTOR * band
+    line = level + slope * (t[start:end] - span[0])
+    away = np.abs(x[start:end] - line) > _DEPARTURE_FACTOR * band
     moving = np.flatnonzero(away[:-1] & away[1:])  # two samples: not one spike
     return float(t[start + moving[0]]) if moving.size else None
 
@@ -378,14 +388,18 @@ def _time(t, blocks, index):
 def _onsets(amplitude, sigma):
     """Blocks where a new excitation starts: the amplitude at least _RISE_FACTOR times
     that of two blocks before, by _RISE_Z standard errors, after a level that did not
-    itself fall by _RISE_FACTOR into the rise (a beat's minimum, a low Q's fast decay:
-    a dip, not an excitation)."""
+    itself fall by _RISE_FACTOR into the rise (a beat's minimum: a dip, not an
+    excitation), unless it rises _RISE_FACTOR times above that level too (a low Q's
+    fast decay struck again)."""
     before = np.maximum(amplitude[:-2], amplitude[1:-1])
     rise = (amplitude[2:] >= _RISE_FACTOR * before) & (amplitude[2:] - before > _RISE_Z * sigma)
     onsets = np.flatnonzero(rise) + 2
-    earlier = np.array([amplitude[max(j - 2 - _DIP_BLOCKS, 0):j - 1].max() for j in onsets])
-    trough = np.array([amplitude[j - 2:j].min() for j in onsets])
-    onsets = onsets[earlier < _RISE_FACTOR * trough + _RISE_Z * sigma] if onsets.size else onsets
+    if onsets.size:
+        earlier = np.array([amplitude[max(j - 2 - _DIP_BLOCKS, 0):j - 1].max() for j in onsets])
+        trough = np.array([amplitude[j - 2:j].min() for j in onsets])
+        no_dip = earlier < _RISE_FACTOR * trough + _RISE_Z * sigma
+        above = amplitude[onsets] >= _RISE_FACTOR * earlier  # clears the level before too
+        onsets = onsets[no_dip | above]
     # One excitation rises over a few blocks: keep the first block of each rise.
     keep = np.concatenate(([True], np.diff(onsets) > 2)) if onsets.size else onsets
     return onsets[keep] - 1  # the block before the rise already holds its start
@@ -423,7 +437,9 @@ def _transient(amplitude, spread, floor, first, stop):
     that changes with amplitude is alike there; a strike's other modes, a hand letting go
     are not), and beyond ``floor``. Where the amplitude falls faster, no judgement."""
     count = stop - first
-    ratio = spread / np.maximum(amplitude, 1e-300)
+    reach = slice(first, stop + _AHEAD)
+    ratio = np.zeros(amplitude.size)
+    ratio[reach] = spread[reach] / np.maximum(amplitude[reach], 1e-300)
     padding = np.zeros(_AHEAD)
     ahead_ratio = np.concatenate((ratio[first + 1:stop + _AHEAD], padding))
     ahead_amplitude = np.concatenate((amplitude[first + 1:stop + _AHEAD], padding))

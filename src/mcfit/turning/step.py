@@ -203,8 +203,9 @@ def _strongest_step(centres, mean, amplitude, period, noise):
 
 def _levels_hold(centres, mean, time, size, period):
     """Whether the local mean holds its level on each side of a step at ``time``, from the
-    ramp's end out to _HOLD periods: a line within _SHAPE of the step there, the two lines
-    ``size`` apart at the step. A slow oscillation (a second mode's remnant under a fast
+    ramp's end out to _HOLD periods (where the record reaches; a period's grid at least):
+    a line within _SHAPE of the step there, the two lines ``size`` apart at the step
+    within twice that. A slow oscillation (a second mode's remnant under a fast
     one) makes half a period look like a step, and does not hold."""
     sides = []
     for inner, outer in ((-_HOLD, -2.0), (2.0, _HOLD)):
