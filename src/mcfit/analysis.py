@@ -18,6 +18,7 @@ from mcfit.fit.pendulum import (RADIANS_PER_DEGREE, fit_turning_points_of_pendul
                                 large_swing_warning, names_degrees)
 from mcfit.options import check_fit_options
 from mcfit.turning import TurningPoints, turning_points_of
+from mcfit.turning.placement import free_decay_runs, with_placed_release
 
 __all__ = ["METHODS", "Analysis", "analyse_record", "auto_start", "crop_record",
            "failed_analysis", "free_decay_runs", "fit_turning_points", "fit_by_method",
@@ -218,44 +219,6 @@ def _per_cycle(params, domain, turning):
         return None
     return {k: {part: None if params[k][part] is None else number(params[k][part] * period)
                 for part in ("value", "stderr")} for k in TERMS}
-
-
-def _with_placed_release(turning, record):
-    """``turning`` with the release where the free decay was found to start after the
-    record's first sample (:func:`free_decay_runs`), unless it found a later one."""
-    start = float(record.t[0]) if record.t.size else math.nan
-    placed = any(end == start for _, end, _ in record.left_out)
-    if not placed or math.isfinite(turning.release_time):
-        return turning
-    return replace(turning, release_time=start)
-
-
-def free_decay_runs(record) -> list:
-    """``record`` kept to its free decay, or one record per free decay where it was excited
-    more than once (``run`` "Run 1", "Run 2", ...; within a run of several side by side,
-    "Run 3.1"...), by :func:`mcfit.turning.placement.locate_free_decay`. A table of turning
-    points, a record against cycle number and a record already placed come back as they
-    are. The parts left out are in ``left_out`` and the notes."""
-    from mcfit.turning.placement import locate_free_decay
-
-    if (record.kind != "waveform" or record.domain != "time" or record.whole is not None
-            or record.placed):
-        return [record]
-    placement = locate_free_decay(record.t, record.x)
-    if not placement.moved:
-        return [replace(record, placed=True)]
-    several = len(placement.runs) > 1
-    runs = []
-    for number, (start, end) in enumerate(placement.runs, 1):
-        low, high = np.searchsorted(record.t, [start, end], side="left")
-        high = record.t.size if end >= record.t[-1] else high
-        run = record.run
-        if several:
-            run = f"Run {number}" if record.run is None else f"{record.run}.{number}"
-        runs.append(replace(record, t=record.t[low:high], x=record.x[low:high], run=run,
-                            notes=record.notes + placement.notes, placed=True,
-                            left_out=placement.left_out, whole=(record.t, record.x)))
-    return runs
 
 
 def failed_analysis(source: str, message: str, record=None, turning=None) -> Analysis:
@@ -734,7 +697,7 @@ def analyse_record(record, *, criterion="aicc", model=None, bootstrap=0, rng=Non
         if start is None and end is None:
             record = free_decay_runs(record)[0]
         record = crop_record(record, start, end)
-        turning = _with_placed_release(turning_points_of(record), record)
+        turning = with_placed_release(turning_points_of(record), record)
     except McfitError as error:
         few = (isinstance(error, TooFewTurningPoints) and bootstrap == 0
                and _waveform_fit_possible(record, pendulum, method))

@@ -25,14 +25,15 @@ ring while the mass is pushed aside) are named in a note and left out.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.fft import next_fast_len, rfft
 
 from mcfit.plain import period_resolution, time_text
 
-__all__ = ["Placement", "locate_free_decay"]
+__all__ = ["Placement", "free_decay_runs", "locate_free_decay", "with_placed_release"]
 
 # Stretches whose spectral peaks vote for the steady frequency (fewer where it has fewer
 # than _MIN_PERIODS periods in one), and the votes it needs.
@@ -494,3 +495,39 @@ def _notes(runs, left_out, period):
     for a, b, why in left_out:
         notes.append(f"left out t = {at(a)} to {at(b)}: {_WORDS[why]}")
     return notes
+
+
+def with_placed_release(turning, record):
+    """``turning`` with the release where the free decay was found to start after the
+    record's first sample (:func:`free_decay_runs`), unless it found a later one."""
+    start = float(record.t[0]) if record.t.size else math.nan
+    placed = any(end == start for _, end, _ in record.left_out)
+    if not placed or math.isfinite(turning.release_time):
+        return turning
+    return replace(turning, release_time=start)
+
+
+def free_decay_runs(record) -> list:
+    """``record`` kept to its free decay, or one record per free decay where it was excited
+    more than once (``run`` "Run 1", "Run 2", ...; within a run of several side by side,
+    "Run 3.1"...), by :func:`mcfit.turning.placement.locate_free_decay`. A table of turning
+    points, a record against cycle number and a record already placed come back as they
+    are. The parts left out are in ``left_out`` and the notes."""
+    if (record.kind != "waveform" or record.domain != "time" or record.whole is not None
+            or record.placed):
+        return [record]
+    placement = locate_free_decay(record.t, record.x)
+    if not placement.moved:
+        return [replace(record, placed=True)]
+    several = len(placement.runs) > 1
+    runs = []
+    for number, (start, end) in enumerate(placement.runs, 1):
+        low, high = np.searchsorted(record.t, [start, end], side="left")
+        high = record.t.size if end >= record.t[-1] else high
+        run = record.run
+        if several:
+            run = f"Run {number}" if record.run is None else f"{record.run}.{number}"
+        runs.append(replace(record, t=record.t[low:high], x=record.x[low:high], run=run,
+                            notes=record.notes + placement.notes, placed=True,
+                            left_out=placement.left_out, whole=(record.t, record.x)))
+    return runs
