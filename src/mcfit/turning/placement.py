@@ -216,11 +216,10 @@ def _refined_peak(span, dt, low, high):
 
 @dataclass(frozen=True)
 class _Blocks:
-    start: np.ndarray  # index of each block's first sample
     amplitude: np.ndarray
     residual: np.ndarray  # rms of the residuals
-    size: int  # samples per block
-    level: np.ndarray | None = None  # the fitted line at each block's middle
+    level: np.ndarray  # the fitted line at each block's middle
+    size: int  # samples per block (block k starts at sample k*size)
 
 
 def _demodulated(t, x, frequency):
@@ -234,10 +233,9 @@ def _demodulated(t, x, frequency):
     step = max(1, _CHUNK_SAMPLES // size)
     parts = [_block_fits(t, x, frequency, size, first, min(first + step, count))
              for first in range(0, count, step)]
-    return _Blocks(start=np.arange(count) * size,
-                   amplitude=np.concatenate([p[0] for p in parts]),
-                   residual=np.concatenate([p[1] for p in parts]), size=size,
-                   level=np.concatenate([p[2] for p in parts]))
+    return _Blocks(amplitude=np.concatenate([p[0] for p in parts]),
+                   residual=np.concatenate([p[1] for p in parts]),
+                   level=np.concatenate([p[2] for p in parts]), size=size)
 
 
 def _block_fits(t, x, frequency, size, first, stop):
